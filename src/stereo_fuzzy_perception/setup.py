@@ -1,0 +1,32 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'stereo_fuzzy_perception'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob('config/*.yaml')),
+    ],
+    package_data={package_name: ['data/*.yaml', 'data/*.npz']},
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='stereo-fuzzy engineering',
+    maintainer_email='engineering@stereo-fuzzy.dev',
+    description='Stereo perception and fuzzy best-point selection for a 3P gantry.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'stereo_sync_node = stereo_fuzzy_perception.stereo_sync_node:main',
+            'correlation_node = stereo_fuzzy_perception.correlation_node:main',
+            'fuzzy_best_point_node = stereo_fuzzy_perception.fuzzy_best_point_node:main',
+            'bag = stereo_fuzzy_perception.bag_tool:main',
+            'render_scenes = stereo_fuzzy_perception.scene_bag_writer:main',
+        ],
+    },
+)

@@ -1,0 +1,1 @@
+"""Stereo perception and fuzzy best-point selection (Ghayoumi and Shayganfar, 2007)."""

@@ -1,0 +1,123 @@
+"""Pytest fixtures for tests that use real rclpy over Fast DDS.
+
+Every ROS test gets a ROS domain of its own, held by a file lock for the whole test, and
+localhost-only discovery, so two test runs on one machine never see each other's topics.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import random
+import signal
+import subprocess
+import tempfile
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from ros_waiting import wait_until
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+INSTALL_DIR = REPO_ROOT / 'ros2_ws' / 'install'
+DOMAIN_LOCK_DIR = Path(tempfile.gettempdir()) / 'stereo_fuzzy_ros_domains'
+# Domain ids 1..100 keep Fast DDS's port numbers inside the valid range.
+DOMAIN_IDS = range(1, 101)
+
+
+@pytest.fixture
+def ros_domain_id(monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
+    """Reserve a ROS domain id no other test on this machine holds, and export it."""
+    DOMAIN_LOCK_DIR.mkdir(exist_ok=True)
+    candidates = list(DOMAIN_IDS)
+    random.shuffle(candidates)
+    for domain_id in candidates:
+        lock_file = open(DOMAIN_LOCK_DIR / f'{domain_id}.lock', 'w')  # noqa: SIM115
+        try:
+            fcntl.flock(lock_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock_file.close()
+            continue
+        monkeypatch.setenv('ROS_DOMAIN_ID', str(domain_id))
+        monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+        try:
+            yield domain_id
+        finally:
+            fcntl.flock(lock_file, fcntl.LOCK_UN)
+            lock_file.close()
+        return
+    pytest.fail(f'all ROS domain ids {DOMAIN_IDS.start}..{DOMAIN_IDS.stop - 1} are in use')
+
+
+@pytest.fixture
+def ros_context(ros_domain_id: int) -> Iterator[object]:
+    """An initialised rclpy context of the test's own, shut down afterwards."""
+    import rclpy
+    from rclpy.context import Context
+
+    context = Context()
+    rclpy.init(context=context, domain_id=ros_domain_id)
+    try:
+        yield context
+    finally:
+        context.try_shutdown()
+
+
+@dataclass
+class RosProcess:
+    """An installed executable running as a child process, its output in a log file."""
+
+    name: str
+    process: subprocess.Popen[bytes]
+    log_path: Path
+
+    def output(self) -> str:
+        """Return everything the process printed so far."""
+        return self.log_path.read_text(errors='replace')
+
+    def interrupt(self, timeout: float = 15.0) -> int:
+        """Send SIGINT as Ctrl-C would and return the exit code."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+            try:
+                self.process.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+                pytest.fail(f'{self.name} ignored SIGINT for {timeout} s:\n{self.output()}')
+        return self.process.returncode
+
+
+def executable_path(package: str, executable: str) -> Path:
+    """Path where colcon installs `executable` of `package` (what `ros2 run` would start)."""
+    return INSTALL_DIR / package / 'lib' / package / executable
+
+
+@pytest.fixture
+def start_ros_process(
+    ros_domain_id: int, tmp_path: Path
+) -> Iterator[Callable[..., RosProcess]]:
+    """Start installed executables like `ros2 run`; interrupt any still running at the end."""
+    started: list[RosProcess] = []
+
+    def start(package: str, executable: str, *arguments: str,
+              env: dict[str, str] | None = None) -> RosProcess:
+        path = executable_path(package, executable)
+        assert path.exists(), f'{path} is not installed: run scripts/setup.sh'
+        log_path = tmp_path / f'{executable}-{len(started)}.log'
+        process_env = dict(os.environ, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0')
+        process_env.update(env or {})
+        with open(log_path, 'wb') as log:
+            process = subprocess.Popen(
+                [str(path), *arguments], stdout=log, stderr=subprocess.STDOUT, env=process_env)
+        ros_process = RosProcess(executable, process, log_path)
+        started.append(ros_process)
+        return ros_process
+
+    yield start
+    for ros_process in started:
+        ros_process.interrupt()
+
+
+__all__ = ['RosProcess', 'executable_path', 'wait_until']
