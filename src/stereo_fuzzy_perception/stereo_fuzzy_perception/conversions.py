@@ -1,0 +1,165 @@
+"""The one module that converts between ROS messages and this package's domain types.
+
+Images <-> numpy arrays (what cv_bridge does), CameraInfo <-> CameraCalibration, and
+MatchedPoints <-> PointCloud2. Everything else in the package works on domain types.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField
+from std_msgs.msg import Header
+
+from .camera_model import CameraCalibration
+from .image_encoding import SUPPORTED_ENCODINGS, ImageEncodingError, check_encoding
+from .matched_points import MatchedPoints
+
+# --- images ----------------------------------------------------------------------------------
+
+
+def image_to_array(msg: Image) -> np.ndarray:
+    """Decode a sensor_msgs/Image into an HxW or HxWxC array (a copy, native byte order).
+
+    Raises:
+        ImageEncodingError: For an unsupported encoding or a buffer that does not match
+            width, height and step.
+    """
+    check_encoding(msg.encoding)
+    dtype, channels = SUPPORTED_ENCODINGS[msg.encoding]
+    row_bytes = msg.width * channels * dtype.itemsize
+    if msg.width == 0 or msg.height == 0:
+        raise ImageEncodingError(f'image is empty ({msg.width}x{msg.height})')
+    if msg.step < row_bytes:
+        raise ImageEncodingError(
+            f'step {msg.step} is shorter than a row of {msg.width} {msg.encoding} pixels '
+            f'({row_bytes} bytes)')
+    if len(msg.data) < msg.step * msg.height:
+        raise ImageEncodingError(
+            f'data holds {len(msg.data)} bytes, expected step*height = {msg.step * msg.height}')
+    buffer = np.frombuffer(bytes(msg.data), dtype=np.uint8, count=msg.step * msg.height)
+    rows = buffer.reshape(msg.height, msg.step)[:, :row_bytes]
+    byte_order = '>' if msg.is_bigendian else '<'
+    array = rows.copy().view(dtype.newbyteorder(byte_order) if dtype.itemsize > 1 else dtype)
+    array = array.astype(dtype, copy=False)
+    return array.reshape(msg.height, msg.width) if channels == 1 else array.reshape(
+        msg.height, msg.width, channels)
+
+
+def array_to_image(array: np.ndarray, encoding: str, header: Header | None = None) -> Image:
+    """Encode an array as a sensor_msgs/Image of `encoding` (dense rows, little-endian)."""
+    check_encoding(encoding)
+    dtype, channels = SUPPORTED_ENCODINGS[encoding]
+    expected_ndim = 2 if channels == 1 else 3
+    if array.ndim != expected_ndim or (channels > 1 and array.shape[2] != channels):
+        raise ImageEncodingError(f'array of shape {array.shape} does not fit {encoding}')
+    contiguous = np.ascontiguousarray(array, dtype=dtype)
+    msg = Image()
+    if header is not None:
+        msg.header = header
+    msg.height, msg.width = int(contiguous.shape[0]), int(contiguous.shape[1])
+    msg.encoding = encoding
+    msg.is_bigendian = 0
+    msg.step = int(msg.width * channels * dtype.itemsize)
+    msg.data = contiguous.tobytes()
+    return msg
+
+
+# --- camera calibration ----------------------------------------------------------------------
+
+
+def camera_info_to_calibration(msg: CameraInfo) -> CameraCalibration:
+    """Read K, D, R, P and the image size of a CameraInfo (not validated: see .problem())."""
+    return CameraCalibration(
+        width=int(msg.width),
+        height=int(msg.height),
+        K=np.array(msg.k, dtype=float).reshape(3, 3),
+        D=np.array(msg.d, dtype=float),
+        R=np.array(msg.r, dtype=float).reshape(3, 3),
+        P=np.array(msg.p, dtype=float).reshape(3, 4),
+        distortion_model=msg.distortion_model or 'plumb_bob',
+        frame_id=msg.header.frame_id,
+    )
+
+
+def calibration_to_camera_info(calibration: CameraCalibration,
+                               header: Header | None = None) -> CameraInfo:
+    """Write a CameraCalibration into a CameraInfo (binning 0, full-image ROI)."""
+    msg = CameraInfo()
+    if header is not None:
+        msg.header = header
+    else:
+        msg.header.frame_id = calibration.frame_id
+    msg.width, msg.height = int(calibration.width), int(calibration.height)
+    msg.distortion_model = calibration.distortion_model
+    msg.d = [float(value) for value in np.asarray(calibration.D).ravel()]
+    msg.k = [float(value) for value in np.asarray(calibration.K).ravel()]
+    msg.r = [float(value) for value in np.asarray(calibration.R).ravel()]
+    msg.p = [float(value) for value in np.asarray(calibration.P).ravel()]
+    return msg
+
+
+# --- matched points --------------------------------------------------------------------------
+
+MATCH_FIELDS = ('x', 'y', 'z', 'u_left', 'v_left', 'u_right', 'score')
+_FLOAT32_POINT = np.dtype([(name, '<f4') for name in MATCH_FIELDS])
+
+
+def matched_points_to_cloud(points: MatchedPoints, header: Header) -> PointCloud2:
+    """Pack matched points into an unordered PointCloud2 with float32 fields MATCH_FIELDS."""
+    records = np.empty(len(points), dtype=_FLOAT32_POINT)
+    records['x'], records['y'], records['z'] = points.xyz[:, 0], points.xyz[:, 1], points.xyz[:, 2]
+    records['u_left'], records['v_left'] = points.u_left, points.v_left
+    records['u_right'], records['score'] = points.u_right, points.score
+    cloud = PointCloud2()
+    cloud.header = header
+    cloud.height, cloud.width = 1, len(points)
+    cloud.fields = [
+        PointField(name=name, offset=4 * index, datatype=PointField.FLOAT32, count=1)
+        for index, name in enumerate(MATCH_FIELDS)
+    ]
+    cloud.is_bigendian = False
+    cloud.point_step = _FLOAT32_POINT.itemsize
+    cloud.row_step = cloud.point_step * len(points)
+    cloud.is_dense = True
+    cloud.data = records.tobytes()
+    return cloud
+
+
+_POINT_FIELD_TYPES = {
+    PointField.INT8: 'i1', PointField.UINT8: 'u1', PointField.INT16: 'i2',
+    PointField.UINT16: 'u2', PointField.INT32: 'i4', PointField.UINT32: 'u4',
+    PointField.FLOAT32: 'f4', PointField.FLOAT64: 'f8',
+}
+
+
+def cloud_to_matched_points(cloud: PointCloud2) -> MatchedPoints:
+    """Unpack a PointCloud2 with fields MATCH_FIELDS (any order, offsets or numeric types).
+
+    Raises:
+        ValueError: When a field is missing or the buffer is shorter than the header says.
+    """
+    fields = {field.name: field for field in cloud.fields}
+    missing = [name for name in MATCH_FIELDS if name not in fields]
+    if missing:
+        raise ValueError(f'point cloud lacks field(s) {", ".join(missing)}; has '
+                         f'{", ".join(fields) or "none"}')
+    count = int(cloud.width) * int(cloud.height)
+    if count == 0:
+        return MatchedPoints.empty()
+    byte_order = '>' if cloud.is_bigendian else '<'
+    dtype = np.dtype({
+        'names': list(MATCH_FIELDS),
+        'formats': [byte_order + _POINT_FIELD_TYPES[fields[name].datatype]
+                    for name in MATCH_FIELDS],
+        'offsets': [fields[name].offset for name in MATCH_FIELDS],
+        'itemsize': int(cloud.point_step),
+    })
+    if len(cloud.data) < count * cloud.point_step:
+        raise ValueError(f'point cloud data holds {len(cloud.data)} bytes, expected '
+                         f'{count * cloud.point_step} for {count} points')
+    records = np.frombuffer(bytes(cloud.data), dtype=dtype, count=count)
+    column = {name: records[name].astype(np.float64) for name in MATCH_FIELDS}
+    return MatchedPoints(
+        xyz=np.stack([column['x'], column['y'], column['z']], axis=1),
+        u_left=column['u_left'], v_left=column['v_left'], u_right=column['u_right'],
+        score=column['score'])

@@ -1,0 +1,72 @@
+"""Message <-> domain conversions round-trip and reject malformed messages clearly."""
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.ros
+
+
+def test_image_round_trip_for_every_supported_encoding():
+    from stereo_fuzzy_perception.conversions import array_to_image, image_to_array
+    from stereo_fuzzy_perception.image_encoding import SUPPORTED_ENCODINGS
+
+    rng = np.random.default_rng(1)
+    for encoding, (dtype, channels) in SUPPORTED_ENCODINGS.items():
+        shape = (5, 7) if channels == 1 else (5, 7, channels)
+        array = rng.integers(0, np.iinfo(dtype).max, size=shape, dtype=dtype)
+        assert np.array_equal(image_to_array(array_to_image(array, encoding)), array), encoding
+
+
+def test_image_with_padded_rows_and_big_endian_mono16_decodes():
+    from sensor_msgs.msg import Image
+    from stereo_fuzzy_perception.conversions import image_to_array
+
+    values = np.arange(6, dtype='>u2').reshape(2, 3)
+    padded = np.zeros((2, 8), dtype=np.uint8)
+    padded[:, :6] = values.view(np.uint8).reshape(2, 6)
+    msg = Image(height=2, width=3, encoding='mono16', is_bigendian=1, step=8,
+                data=padded.tobytes())
+    assert np.array_equal(image_to_array(msg), values.astype(np.uint16))
+
+
+def test_unsupported_encoding_and_short_buffer_are_named():
+    from sensor_msgs.msg import Image
+    from stereo_fuzzy_perception.conversions import image_to_array
+    from stereo_fuzzy_perception.image_encoding import ImageEncodingError
+
+    with pytest.raises(ImageEncodingError, match='yuv422'):
+        image_to_array(Image(height=2, width=2, encoding='yuv422', step=4, data=b'\0' * 8))
+    with pytest.raises(ImageEncodingError, match='data holds 3 bytes'):
+        image_to_array(Image(height=2, width=2, encoding='mono8', step=2, data=b'\0' * 3))
+
+
+def test_matched_points_round_trip_through_point_cloud():
+    from std_msgs.msg import Header
+    from stereo_fuzzy_perception.conversions import (
+        cloud_to_matched_points,
+        matched_points_to_cloud,
+    )
+    from stereo_fuzzy_perception.matched_points import MatchedPoints
+
+    rng = np.random.default_rng(2)
+    points = MatchedPoints(rng.normal(size=(10, 3)), rng.uniform(0, 640, 10),
+                           rng.uniform(0, 480, 10), rng.uniform(0, 640, 10),
+                           rng.uniform(-1, 1, 10))
+    back = cloud_to_matched_points(matched_points_to_cloud(points, Header(frame_id='left')))
+    for name in ('xyz', 'u_left', 'v_left', 'u_right', 'score'):
+        assert np.allclose(getattr(back, name), getattr(points, name), atol=1e-4), name
+
+
+def test_camera_info_round_trip():
+    from stereo_fuzzy_perception.camera_model import CameraCalibration
+    from stereo_fuzzy_perception.conversions import (
+        calibration_to_camera_info,
+        camera_info_to_calibration,
+    )
+
+    calibration = CameraCalibration(
+        640, 480, np.array([[500.0, 0, 320], [0, 500, 239], [0, 0, 1]]),
+        np.array([0.1, -0.05, 0, 0, 0]), np.eye(3),
+        np.array([[500.0, 0, 320, -30], [0, 500, 239, 0], [0, 0, 1, 0]]), frame_id='right')
+    assert camera_info_to_calibration(calibration_to_camera_info(calibration)).same_as(
+        calibration)
