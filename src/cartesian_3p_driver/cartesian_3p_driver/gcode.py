@@ -248,7 +248,8 @@ def clamp_feed(feed_mm_min: float, start_mm: Vector3 | None, end_mm: Vector3,
         else:
             caps.extend(max_rate_mm_min[i] * length / abs(deltas[i])
                         for i in range(3) if deltas[i] != 0.0)
-    return max(min(caps), 0.1)
+    # Rounded down to the 0.1 mm/min that is sent, so formatting never raises the feed.
+    return max(math.floor(min(caps) * 10.0) / 10.0, 0.1)
 
 
 def _quantize_inside(value_mm: float, low_mm: float, high_mm: float) -> float:
