@@ -304,7 +304,8 @@ def plan_move(target_m: Vector3, current_m: Vector3 | None, feed_mm_min: float,
                 _quantize_inside(raw[2], low[2], high[2]))
 
     goal_mm = machine(goal)
-    position = machine(current_m) if current_m is not None else None
+    # The start is not clamped: a tool outside the box still sets the real direction.
+    position = config.transform.to_machine(current_m) if current_m is not None else None
     lines: list[str] = []
 
     def move(axes: Sequence[int], end_mm: Vector3) -> None:
