@@ -7,6 +7,7 @@ MatchedPoints <-> PointCloud2. Everything else in the package works on domain ty
 from __future__ import annotations
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField
 from std_msgs.msg import Header
 
@@ -62,6 +63,32 @@ def array_to_image(array: np.ndarray, encoding: str, header: Header | None = Non
     msg.step = int(msg.width * channels * dtype.itemsize)
     msg.data = contiguous.tobytes()
     return msg
+
+
+def check_image_layout(msg: Image) -> None:
+    """Check what image_to_array checks (encoding, size, step, buffer) without decoding.
+
+    Raises:
+        ImageEncodingError: For an unsupported encoding, an empty image, a step shorter than
+            a row, or data shorter than step * height.
+    """
+    check_encoding(msg.encoding)
+    dtype, channels = SUPPORTED_ENCODINGS[msg.encoding]
+    row_bytes = msg.width * channels * dtype.itemsize
+    if msg.width == 0 or msg.height == 0:
+        raise ImageEncodingError(f'image is empty ({msg.width}x{msg.height})')
+    if msg.step < row_bytes:
+        raise ImageEncodingError(
+            f'step {msg.step} is shorter than a row of {msg.width} {msg.encoding} pixels '
+            f'({row_bytes} bytes)')
+    if len(msg.data) < msg.step * msg.height:
+        raise ImageEncodingError(
+            f'data holds {len(msg.data)} bytes, expected step*height = {msg.step * msg.height}')
+
+
+def stamp_to_ns(stamp: Time) -> int:
+    """Convert a builtin_interfaces/Time to integer nanoseconds [ns]."""
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 # --- camera calibration ----------------------------------------------------------------------
