@@ -151,10 +151,8 @@ class GrblController:
                  on_line_received: Callable[[str], None] | None = None,
                  work_offset_mm: Vector3 = (0.0, 0.0, 0.0)) -> None:
         self.settings = settings or ControllerSettings()
-        self.faults = faults or FaultInjection()
-        self._refuse_re = (re.compile(self.faults.refuse_line_pattern)
-                           if self.faults.refuse_line_pattern else None)
-        self._on_line_received = on_line_received
+        self.set_faults(faults or FaultInjection())
+        self.on_line_received = on_line_received
         self.work_offset_mm = work_offset_mm
         self.output: deque[str] = deque()
         self.position: list[float] = [0.0, 0.0, 0.0]
@@ -177,6 +175,12 @@ class GrblController:
         self.sub_state = -1
         self.critical = False
         self.power_cycle(0.0)
+
+    def set_faults(self, faults: FaultInjection) -> None:
+        """Replace the injected faults (line numbers keep counting from the start)."""
+        self.faults = faults
+        self._refuse_re = (re.compile(faults.refuse_line_pattern)
+                           if faults.refuse_line_pattern else None)
 
     # -- start-up and reset ------------------------------------------------------------------
 
@@ -266,8 +270,8 @@ class GrblController:
                 text = self._rx_partial.decode('ascii', errors='replace')
                 self._rx_partial.clear()
                 self._rx_lines.append((self.lines_received, text))
-                if self._on_line_received is not None:
-                    self._on_line_received(text)
+                if self.on_line_received is not None:
+                    self.on_line_received(text)
                 # Grbl's main loop consumes lines while bytes keep arriving.
                 self._process_lines()
             else:
