@@ -372,21 +372,22 @@ def test_devices_source_drops_frames_that_do_not_fit_the_calibration(make_harnes
 
 def test_devices_source_without_files_refuses_to_start(ros_context):
     from rclpy.parameter import Parameter
-    from stereo_fuzzy_perception.stereo_sync_node import StereoSyncNode
+    from stereo_fuzzy_perception.stereo_sync_node import StereoSyncNode, StereoSyncSetupError
 
-    with pytest.raises(ValueError, match='source=devices needs left_device, right_device'):
+    with pytest.raises(StereoSyncSetupError,
+                       match='source=devices needs left_device, right_device'):
         StereoSyncNode(context=ros_context,
                        parameter_overrides=[Parameter('source', value='devices')])
 
 
 def test_device_index_given_as_an_integer_is_accepted(ros_context, tmp_path):
     from rclpy.parameter import Parameter
-    from stereo_fuzzy_perception.stereo_sync_node import StereoSyncNode
+    from stereo_fuzzy_perception.stereo_sync_node import StereoSyncNode, StereoSyncSetupError
 
     parameters = write_device_files(tmp_path, frames=1)
     parameters.update(left_device=97, right_device=98)  # as `-p left_device:=97` gives it
     # No camera 97 exists here: the node gets as far as opening it, which names the device.
-    with pytest.raises(RuntimeError, match="cannot open capture '97'"):
+    with pytest.raises(StereoSyncSetupError, match="cannot open capture '97'"):
         StereoSyncNode(context=ros_context, parameter_overrides=[
             Parameter(name, value=value) for name, value in parameters.items()])
 

@@ -14,6 +14,7 @@ stereo/pair; a bad set is dropped, counted by reason and reported on /diagnostic
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
 from collections import Counter, deque
@@ -36,7 +37,7 @@ from std_msgs.msg import Header
 from stereo_fuzzy_msgs.msg import StereoPair
 
 from . import qos
-from .camera_calibration_file import read_calibration_yaml
+from .camera_calibration_file import CalibrationFileError, read_calibration_yaml
 from .camera_model import StereoCalibration
 from .conversions import (
     array_to_image,
@@ -71,6 +72,10 @@ DROP_REASONS = (
 # (`-p left_device:=0` or `-p left_device:=left_%03d.png`): declared with dynamic typing.
 DEVICE_PARAMETERS = ('left_device', 'right_device')
 ERROR_THROTTLE_S = 5.0
+
+
+class StereoSyncSetupError(ValueError):
+    """Parameters or capture sources the node cannot start with, named in the message."""
 
 
 @dataclass(frozen=True)
@@ -179,7 +184,7 @@ class StereoSyncNode(Node):
         self.parameters.update(self._declare_device_parameters())
         reason = check_parameters(self.parameters)
         if reason:
-            raise ValueError(reason)
+            raise StereoSyncSetupError(reason)
         self.statistics = PairStatistics()
         self._reason_loggers: dict[str, RcutilsLogger] = {}
         self._capture: DeviceCapture | None = None
@@ -420,7 +425,7 @@ class DeviceCapture:
         right_source: Likewise for the right camera.
 
     Raises:
-        RuntimeError: When a capture cannot be opened, naming it.
+        StereoSyncSetupError: When a capture cannot be opened, naming it.
     """
 
     def __init__(self, left_source: str, right_source: str) -> None:
@@ -432,7 +437,7 @@ class DeviceCapture:
     def _open(source: str) -> cv2.VideoCapture:
         capture = cv2.VideoCapture(int(source) if source.isdigit() else source)
         if not capture.isOpened():
-            raise RuntimeError(f'cannot open capture {source!r} (a device index, a device '
+            raise StereoSyncSetupError(f'cannot open capture {source!r} (a device index, a device '
                                'path, a video file, or an image pattern such as left_%03d.png)')
         return capture
 
@@ -471,15 +476,22 @@ def main(args: list[str] | None = None) -> None:
     """Run the node until shutdown."""
     rclpy.init(args=args)
     node = None
+    failed = False
     try:
         node = StereoSyncNode()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except (StereoSyncSetupError, CalibrationFileError) as error:
+        # Wiring mistakes: one clear line instead of a traceback.
+        rclpy.logging.get_logger('stereo_sync_node').fatal(f'cannot start: {error}')
+        failed = True
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    if failed:
+        sys.exit(1)
 
 
 if __name__ == '__main__':
