@@ -1,0 +1,297 @@
+"""The demo: the whole chain on a recorded bag and the simulated gantry.
+
+Starts fake_gantry and every node as separate processes (parameters from chain/demo_params.yaml,
+read natively through --ros-args --params-file), homes the gantry, records the outputs to a bag,
+plays the demo bag, and prints a table per object: ground truth, best point, error, the G-code
+lines sent and the gantry's final position. Writes a picture per object and exits non-zero if any
+object fails. Run it with scripts/demo.sh.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from chain.processes import REPO_ROOT, ProcessGroup, executable_path, wait_for
+
+DEFAULT_BAG = REPO_ROOT / 'bags' / 'demo_scenes'
+DEFAULT_PARAMS = REPO_ROOT / 'chain' / 'demo_params.yaml'
+OUTPUT_TOPICS = ('best_point', 'best_point/decision', 'gantry/state')
+
+
+@dataclass
+class ObjectResult:
+    """The verdict on one object of the bag."""
+
+    index: int
+    stamp_ns: int
+    ground_truth: list[float] | None
+    best_point: list[float] | None
+    error_mm: float | None
+    horizontal_error_mm: float | None
+    vertical_error_mm: float | None
+    commanded: list[float] | None
+    final_position: list[float] | None
+    gcode_lines: list[str]
+    status: str
+    passed: bool
+
+
+def _read_lines(path: Path) -> list[str]:
+    return path.read_text().splitlines() if path.exists() else []
+
+
+def _strip_log_prefix(line: str) -> str:
+    """Drop a leading timestamp column from a sent/received line log, if the log has one."""
+    head, _, rest = line.partition('\t')
+    return rest if rest and head.replace('.', '', 1).isdigit() else line
+
+
+class DemoRun:
+    """One run of the chain over a bag: processes, monitor and verdicts."""
+
+    def __init__(self, bag: Path, params_file: Path, output_dir: Path, tolerance_mm: float,
+                 rate: float, timeout_s: float, quiet: bool = False) -> None:
+        self.bag = bag
+        self.params_file = params_file
+        self.output_dir = output_dir
+        self.tolerance_mm = tolerance_mm
+        self.rate = rate
+        self.timeout_s = timeout_s
+        self.quiet = quiet
+        self.params = yaml.safe_load(params_file.read_text())
+        self.group = ProcessGroup(output_dir / 'logs')
+        self.gantry_link = Path(tempfile.mkdtemp(prefix='stereo_fuzzy_gantry_')) / 'tty'
+        self.sent_log = output_dir / 'gcode_sent.log'
+        self.received_log = output_dir / 'gcode_received.log'
+
+    # --- processes ---------------------------------------------------------------------------
+
+    def start_chain(self) -> None:
+        """Start the simulated gantry, the driver and the three perception nodes."""
+        for log in (self.sent_log, self.received_log):
+            log.unlink(missing_ok=True)
+        params = ['--params-file', str(self.params_file)]
+        self.group.start_node('cartesian_3p_driver', 'fake_gantry', *params,
+                              '-p', f'link_path:={self.gantry_link}',
+                              '-p', f'received_lines_log:={self.received_log}')
+        wait_for(self.gantry_link.exists, 30.0, 'the simulated gantry pseudo-terminal',
+                 watch=self.group)
+        self.group.start_node('cartesian_3p_driver', 'gantry_driver_node', *params,
+                              '-p', f'port:={self.gantry_link}',
+                              '-p', f'sent_lines_log:={self.sent_log}')
+        for executable in ('stereo_sync_node', 'correlation_node', 'fuzzy_best_point_node'):
+            self.group.start_node('stereo_fuzzy_perception', executable, *params)
+
+    def start_recorder(self) -> Path:
+        """Record the chain's outputs into a bag under the output folder."""
+        outputs = self.output_dir / 'outputs_bag'
+        if outputs.exists():
+            for child in sorted(outputs.rglob('*'), reverse=True):
+                child.unlink() if child.is_file() else child.rmdir()
+            outputs.rmdir()
+        self.group.start('bag_record', [executable_path('stereo_fuzzy_perception', 'bag'),
+                                        'record', '-o', outputs, *OUTPUT_TOPICS])
+        return outputs
+
+    def start_player(self) -> None:
+        """Play the demo bag once every topic it publishes has a subscriber."""
+        self.group.start('bag_play', [executable_path('stereo_fuzzy_perception', 'bag'), 'play',
+                                      self.bag, '--wait-for-subscribers',
+                                      '--rate', str(self.rate)])
+
+    # --- the run -----------------------------------------------------------------------------
+
+    def run(self) -> list[ObjectResult]:
+        """Run the chain over the bag and return a verdict per object."""
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from std_srvs.srv import Trigger
+
+        from chain.demo_monitor import DemoMonitor
+
+        self.output_dir.mkdir(parents=True, exist_ok=True)
+        context = rclpy.Context()
+        rclpy.init(context=context)
+        node = rclpy.create_node('demo_monitor', context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        monitor = DemoMonitor(node)
+
+        def spin(timeout: float) -> None:
+            executor.spin_once(timeout_sec=timeout)
+
+        try:
+            self._progress('starting the simulated gantry and the nodes')
+            self.start_chain()
+            wait_for(lambda: monitor.latest_gantry_state is not None
+                     and monitor.latest_gantry_state.connected, 60.0,
+                     'the driver to connect to the simulated gantry', spin, self.group)
+            self._progress('homing the gantry')
+            home = node.create_client(Trigger, 'gantry/home')
+            wait_for(home.service_is_ready, 30.0, 'the gantry/home service', spin, self.group)
+            future = home.call_async(Trigger.Request())
+            wait_for(future.done, 120.0, 'homing to finish', spin, self.group)
+            if not future.result().success:
+                raise RuntimeError(f'homing failed: {future.result().message}')
+            wait_for(monitor.gantry_ready, 60.0, 'the gantry to be Idle after homing', spin,
+                     self.group)
+            self.lines_sent_at_start = monitor.latest_gantry_state.lines_sent
+            self.start_recorder()
+            self._progress(f'playing {self.bag.name}')
+            self.start_player()
+            player = self.group.processes[-1]
+            deadline = time.monotonic() + self.timeout_s
+            while player.running() and time.monotonic() < deadline:
+                spin(0.1)
+                self._progress_scenes(monitor)
+            if player.running():
+                raise TimeoutError(f'the bag did not finish playing in {self.timeout_s:.0f} s')
+            if player.process.returncode != 0:
+                raise RuntimeError(f'bag play failed:\n{player.output()[-3000:]}')
+            expected = [record for record in monitor.scenes.values()
+                        if record.ground_truth is not None]
+            wait_for(lambda: self._all_settled(monitor, expected), 120.0,
+                     'the gantry to finish the last moves', spin, self.group)
+        finally:
+            exit_codes = self.group.stop_all()
+            node.destroy_node()
+            executor.shutdown()
+            context.try_shutdown()
+        if not self.quiet:
+            print(file=sys.stderr)
+        self.exit_codes = exit_codes
+        return self._verdicts(monitor)
+
+    def _commanded(self, best_point: np.ndarray) -> np.ndarray:
+        offset = float(self.params.get('gantry_driver_node', {}).get('ros__parameters', {})
+                       .get('approach_offset_m', 0.0))
+        return best_point + np.array([0.0, 0.0, offset])
+
+    def _all_settled(self, monitor: object, expected: list) -> bool:
+        for record in expected:
+            if record.decision is None:
+                return False
+            if record.best_point is not None and monitor.idle_at(
+                    self._commanded(record.best_point), 0.0005,
+                    record.gantry_index_at_best_point) is None:
+                return False
+        return True
+
+    def _verdicts(self, monitor: object) -> list[ObjectResult]:
+        from chain.demo_pictures import draw_scene
+
+        sent = [_strip_log_prefix(line) for line in _read_lines(self.sent_log)]
+        results = []
+        scenes = sorted((record for record in monitor.scenes.values()
+                         if record.ground_truth is not None), key=lambda r: r.stamp_ns)
+        # Targets run one after another, so the lines sent between reaching the previous target
+        # and reaching this one are this target's lines.
+        lines_before = self.lines_sent_at_start
+        for index, record in enumerate(scenes):
+            result, lines_before = self._verdict(index, record, monitor, sent, lines_before)
+            results.append(result)
+            draw_scene(record, self.params, self.output_dir / f'object_{index:02d}.png')
+        return results
+
+    def _verdict(self, index: int, record: object, monitor: object, sent: list[str],
+                 lines_before: int) -> tuple[ObjectResult, int]:
+        truth = record.ground_truth
+        if record.best_point is None:
+            reason = record.decision.status if record.decision is not None else 'no decision'
+            return ObjectResult(index, record.stamp_ns, truth.tolist(), None, None, None, None,
+                                None, None, [], f'no best point: {reason}', False), lines_before
+        error = record.best_point - truth
+        commanded = self._commanded(record.best_point)
+        reached = monitor.idle_at(commanded, 0.0005, record.gantry_index_at_best_point)
+        lines = [] if reached is None else sent[lines_before:reached.lines_sent]
+        error_mm = float(np.linalg.norm(error) * 1000)
+        passed = error_mm <= self.tolerance_mm and reached is not None
+        if reached is None:
+            status = 'gantry did not reach the best point'
+        elif error_mm > self.tolerance_mm:
+            status = f'error above {self.tolerance_mm} mm'
+        else:
+            status = 'ok'
+        result = ObjectResult(
+            index, record.stamp_ns, truth.tolist(), record.best_point.tolist(), error_mm,
+            float(np.linalg.norm(error[:2]) * 1000), float(abs(error[2]) * 1000),
+            commanded.tolist(), None if reached is None else reached.world_position.tolist(),
+            lines, status, passed)
+        return result, lines_before if reached is None else reached.lines_sent
+
+    # --- progress ----------------------------------------------------------------------------
+
+    def _progress(self, text: str) -> None:
+        if not self.quiet:
+            print(f'\r\033[K[demo] {text}', end='', file=sys.stderr, flush=True)
+
+    def _progress_scenes(self, monitor: object) -> None:
+        seen = sum(1 for record in monitor.scenes.values() if record.ground_truth is not None)
+        decided = sum(1 for record in monitor.scenes.values() if record.decision is not None)
+        state = monitor.latest_gantry_state.state if monitor.latest_gantry_state else '?'
+        self._progress(f'scenes played {seen}, decided {decided}, gantry {state}')
+
+
+def format_table(results: list[ObjectResult]) -> str:
+    """Return the per-object results as a markdown table."""
+    def point(values: list[float] | None) -> str:
+        return '-' if values is None else '(' + ', '.join(f'{v * 1000:.1f}' for v in values) + ')'
+
+    lines = ['| # | ground truth [mm] | best point [mm] | error [mm] (xy / z) | gantry final '
+             '[mm] | G-code sent | verdict |', '|---|---|---|---|---|---|---|']
+    for result in results:
+        error = '-' if result.error_mm is None else (
+            f'{result.error_mm:.2f} ({result.horizontal_error_mm:.2f} / '
+            f'{result.vertical_error_mm:.2f})')
+        gcode = '<br>'.join(result.gcode_lines) or '-'
+        lines.append(f'| {result.index} | {point(result.ground_truth)} | '
+                     f'{point(result.best_point)} | {error} | {point(result.final_position)} | '
+                     f'{gcode} | {result.status} |')
+    return '\n'.join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the demo; return 0 when every object passed."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--bag', type=Path, default=DEFAULT_BAG, help='bag to play')
+    parser.add_argument('--params', type=Path, default=DEFAULT_PARAMS,
+                        help='ROS parameter file for every node')
+    parser.add_argument('--output', type=Path, default=REPO_ROOT / 'output' / 'demo',
+                        help='folder for pictures, logs, the outputs bag and results.json')
+    parser.add_argument('--tolerance-mm', type=float, default=3.0,
+                        help='largest best-point error that passes [mm]')
+    parser.add_argument('--rate', type=float, default=1.0, help='bag playback rate')
+    parser.add_argument('--timeout', type=float, default=600.0,
+                        help='longest time the bag may take to play [s]')
+    arguments = parser.parse_args(argv)
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    run = DemoRun(arguments.bag, arguments.params, arguments.output, arguments.tolerance_mm,
+                  arguments.rate, arguments.timeout)
+    results = run.run()
+    table = format_table(results)
+    print(table)
+    (arguments.output / 'results.json').write_text(
+        json.dumps([asdict(result) for result in results], indent=2))
+    (arguments.output / 'results.md').write_text(table + '\n')
+    failed = [result for result in results if not result.passed]
+    print(f'\n{len(results) - len(failed)} of {len(results)} objects passed '
+          f'(tolerance {arguments.tolerance_mm} mm); pictures, logs and the outputs bag are in '
+          f'{arguments.output}')
+    if not results:
+        print('no object was seen: did the bag play?', file=sys.stderr)
+        return 1
+    return 1 if failed else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
