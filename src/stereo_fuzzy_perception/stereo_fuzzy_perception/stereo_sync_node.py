@@ -133,23 +133,28 @@ class PairStatistics:
         self._last_report = (time.monotonic(), 0, 0)
 
     def count_received(self, topic: str) -> None:
+        """Count one message received on an input topic."""
         with self._lock:
             self.received[topic] += 1
 
     def count_in(self) -> None:
+        """Count one set (or captured frame pair) entering the checks."""
         with self._lock:
             self.pairs_in += 1
 
     def count_out(self) -> None:
+        """Count one StereoPair published."""
         with self._lock:
             self.pairs_out += 1
 
     def count_drop(self, reason: str) -> None:
+        """Count one pair dropped for `reason` (one of DROP_REASONS)."""
         with self._lock:
             self.dropped[reason] += 1
             self._drop_times.append(time.monotonic())
 
     def count_unpaired(self, topic: str) -> None:
+        """Count one message evicted unpaired from the queue of `topic`."""
         with self._lock:
             self.unpaired[topic] += 1
 
@@ -430,7 +435,9 @@ class DeviceCapture:
 
     def __init__(self, left_source: str, right_source: str) -> None:
         self.left_source, self.right_source = left_source, right_source
-        self.is_live = left_source.isdigit() or left_source.startswith('/dev/')
+        # Cameras and streams have no end; files and image patterns do.
+        self.is_live = (left_source.isdigit() or left_source.startswith('/dev/')
+                        or '://' in left_source)
         self._captures = [self._open(left_source), self._open(right_source)]
 
     @staticmethod
