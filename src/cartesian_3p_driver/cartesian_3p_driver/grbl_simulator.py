@@ -241,6 +241,7 @@ class GrblSimulator:
             self._log('fake_gantry: host closed the pty')
         elif not hung_up and not self._pty_connected:
             self._pty_connected = True
+            self.controller.output.clear()
             self._boot_at = now + self.options.boot_delay_s
             self._log('fake_gantry: host opened the pty, rebooting')
         if hung_up:
