@@ -214,7 +214,8 @@ class FourAreas:
     Arrays indexed by area hold areas 1..4 at 0..3.
 
     Attributes:
-        status: STATUS_OK or DEGENERATE_AREA.
+        status: STATUS_OK or DEGENERATE_AREA (no extent in u or v, or no finite ratio). An
+            empty area alone is not degenerate: its ratio is NaN, so its rules do not fire.
         reason: Why the areas are degenerate ('' when ok).
         border_points: (4, 3) world points of min u, max u, min v, max v [m].
         border_distances: (6,) Eq. 9 distances for BORDER_PAIRS [m].
@@ -245,7 +246,7 @@ class FourAreas:
 
     @property
     def ok(self) -> bool:
-        """Return True when every area has points and every ratio is finite."""
+        """Return True when the area could be split into four areas."""
         return self.status == STATUS_OK
 
     def union_centre(self, areas: tuple[int, ...]) -> np.ndarray:
@@ -275,8 +276,9 @@ def split_into_areas(area: CorrelationArea, left_principal: tuple[float, float],
         right_principal: (cx, cy) of the right rectified projection [px].
 
     Returns:
-        The border points and areas; status DEGENERATE_AREA (with the reason) when an area is
-        empty or a centre sits on the right principal point (d2 = 0).
+        The border points and areas; status DEGENERATE_AREA (with the reason) when the area has
+        no extent along an image axis or no centre has a finite ratio (d2 = 0). Empty areas
+        have NaN centres and ratios.
     """
     u, v, ur, world = area.u_left, area.v_left, area.u_right, area.xyz_world
     ties = np.column_stack([u, v, world])
@@ -301,14 +303,12 @@ def split_into_areas(area: CorrelationArea, left_principal: tuple[float, float],
         d2 = np.hypot(cur - right_principal[0], cv - right_principal[1])
         ratio = d1 / d2
     status, reason = STATUS_OK, ''
-    empty = [str(k + 1) for k in range(4) if counts[k] == 0]
-    if empty:
+    if u_mid == float(u.min()) or v_mid == float(v.min()):
         status, reason = DEGENERATE_AREA, (
-            f'area(s) {", ".join(empty)} of the correlation area have no points (the area '
-            f'spans {float(u.max() - u.min()):.3g} x {float(v.max() - v.min()):.3g} px)')
-    elif not np.all(np.isfinite(ratio)):
-        bad = [str(k + 1) for k in range(4) if not np.isfinite(ratio[k])]
-        status, reason = DEGENERATE_AREA, (
-            f'area(s) {", ".join(bad)}: centre on the right principal point (d2 = 0)')
+            f'the correlation area spans {float(u.max() - u.min()):.3g} x '
+            f'{float(v.max() - v.min()):.3g} px in the left image: a line or a point cannot be '
+            'split into four areas')
+    elif not np.any(np.isfinite(ratio)):
+        status, reason = DEGENERATE_AREA, 'every area centre sits on the right principal point'
     return FourAreas(status, reason, border_points, border_distances, world.mean(axis=0),
                      centres, cu, cv, cur, counts, d1, d2, ratio)

@@ -42,9 +42,28 @@ def membership_degrees(rule_base: RuleBase, ratios: np.ndarray) -> np.ndarray:
     return np.stack(columns, axis=-1)
 
 
-def normalized_firing_strengths(rule_base: RuleBase, ratios: np.ndarray) -> np.ndarray:
-    """Return w_l / sum(w), shape (..., L); rows where no rule fires are all zero."""
+def firing_strengths(degrees: np.ndarray, consequents: np.ndarray) -> np.ndarray:
+    """Return w_l: the premise degree, or 0 for a rule whose consequent is undefined.
+
+    A consequent is undefined (NaN) when all of its areas are empty; an empty premise area has
+    a NaN ratio and so degree 0 already.
+    """
+    defined = np.all(np.isfinite(consequents), axis=-1)
+    return np.where(defined, degrees, 0.0)
+
+
+def normalized_firing_strengths(rule_base: RuleBase, ratios: np.ndarray,
+                                consequents: np.ndarray | None = None) -> np.ndarray:
+    """Return w_l / sum(w), shape (..., L); rows where no rule fires are all zero.
+
+    Args:
+        rule_base: The rules.
+        ratios: (..., 4) r_k.
+        consequents: (..., L, 3) consequent points; rules with NaN ones do not fire.
+    """
     strengths = membership_degrees(rule_base, ratios)
+    if consequents is not None:
+        strengths = firing_strengths(strengths, consequents)
     total = strengths.sum(axis=-1, keepdims=True)
     with np.errstate(invalid='ignore', divide='ignore'):
         normalized = np.where(total > 0.0, strengths / total, 0.0)
@@ -67,7 +86,9 @@ def consequent_base_points(rule_base: RuleBase, centres: np.ndarray,
         index = np.asarray(rule.consequent_areas) - 1
         weight = counts[..., index]
         total = weight.sum(axis=-1, keepdims=True)
-        bases.append(np.einsum('...k,...kj->...j', weight, centres[..., index, :]) / total)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            bases.append(np.einsum('...k,...kj->...j', weight,
+                                   np.nan_to_num(centres[..., index, :])) / total)
     return np.stack(bases, axis=-2)
 
 
@@ -77,7 +98,8 @@ class FuzzyResult:
 
     Attributes:
         membership_degrees: (L,) degree of each rule's premise.
-        firing_strengths: (L,) w_l of Eq. 10 (equal to the degrees: one premise per rule).
+        firing_strengths: (L,) w_l of Eq. 10: the degree (one premise per rule), or 0 when
+            the rule's consequent is undefined.
         consequent_points: (L, 3) y_l [m] in `world`.
         point: (3,) Eq. 10 point [m], or None when no rule fired (sum of w is 0).
     """
@@ -93,15 +115,16 @@ def infer(rule_base: RuleBase, areas: FourAreas) -> FuzzyResult:
 
     Args:
         rule_base: Membership functions and rules.
-        areas: The four areas (status ok: every area has points and a finite ratio).
+        areas: The four areas (status ok; an empty area's rules do not fire).
 
     Returns:
-        Degrees, strengths, consequent points and the Eq. 10 point (None if nothing fired).
+        Degrees, strengths, consequent points (NaN when all their areas are empty) and the
+        Eq. 10 point (None if nothing fired).
     """
     degrees = membership_degrees(rule_base, areas.ratio)
-    strengths = degrees
     offsets = np.array([rule.offset_m for rule in rule_base.rules], dtype=float)
     consequents = consequent_base_points(rule_base, areas.centres, areas.counts) + offsets
+    strengths = firing_strengths(degrees, consequents)
     total = float(strengths.sum())
-    point = None if total <= 0.0 else (strengths @ consequents) / total
+    point = None if total <= 0.0 else (strengths @ np.nan_to_num(consequents)) / total
     return FuzzyResult(degrees, strengths, consequents, point)

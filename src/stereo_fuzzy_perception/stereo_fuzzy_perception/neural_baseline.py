@@ -24,10 +24,12 @@ class NeuralBaselineError(ValueError):
 
 
 def neural_features(area: CorrelationArea, areas: FourAreas) -> np.ndarray:
-    """Return the (14,) input vector of one decision (see the module docstring)."""
-    log_ratio = np.clip(np.log(np.maximum(areas.ratio, 1e-12)), -LOG_RATIO_LIMIT,
-                        LOG_RATIO_LIMIT)
+    """Return the (14,) input vector of one decision (empty areas contribute zeros)."""
+    with np.errstate(invalid='ignore', divide='ignore'):
+        log_ratio = np.clip(np.log(np.maximum(areas.ratio, 1e-12)), -LOG_RATIO_LIMIT,
+                            LOG_RATIO_LIMIT)
     relative = (areas.centres[:, :2] - areas.centre[:2]).ravel()
+    log_ratio, relative = np.nan_to_num(log_ratio), np.nan_to_num(relative)  # empty areas: 0
     return np.concatenate([log_ratio, relative, areas.centre[:2]])
 
 

@@ -230,9 +230,11 @@ class BestPointChooser:
             decision.firing_strengths = result.firing_strengths
             decision.consequent_points = result.consequent_points
             if result.point is None:
+                empty = [str(k + 1) for k in range(4) if areas.counts[k] == 0]
                 return self._refuse(decision, NO_RULE_FIRED, (
                     'no rule fired: ratios ' + ', '.join(f'{r:.3g}' for r in areas.ratio)
-                    + ' lie outside every membership function'))
+                    + ' lie outside every membership function'
+                    + (f' or their areas ({", ".join(empty)}) are empty' if empty else '')))
             decision.eq10_point = result.point
             horizontal = result.point
             height_offset = self.rule_base.height_offset_m

@@ -108,10 +108,11 @@ def fit_rule_offsets(template: RuleBase, data: TrainingSet, ridge: float = 1e-3,
     Returns:
         The fitted rule base (z offsets 0: the height rule sets z; height_offset_m fitted).
     """
-    firing = normalized_firing_strengths(template, data.ratios)  # (S, L)
+    bases = consequent_base_points(template, data.centres, data.counts)  # (S, L, 3)
+    firing = normalized_firing_strengths(template, data.ratios, bases)  # (S, L)
     fired = firing.sum(axis=1) > 0.0
     firing = firing[fired]
-    bases = consequent_base_points(template, data.centres[fired], data.counts[fired])
+    bases = np.nan_to_num(bases[fired])
     eq10 = np.einsum('sl,slj->sj', firing, bases)
     residual = data.targets[fired] - eq10
     rule_count = firing.shape[1]
