@@ -1,23 +1,31 @@
 """The one module that converts between ROS messages and this package's domain types.
 
 Images <-> numpy arrays (what cv_bridge does), CameraInfo <-> CameraCalibration,
-MatchedPoints <-> PointCloud2, and the scene simulator's ground truth -> PointStamped / Marker.
-Everything else in the package works on domain types.
+MatchedPoints <-> PointCloud2, the scene simulator's ground truth -> PointStamped / Marker, and
+the fuzzy stage's BestPointDecision -> FuzzyDecision / PointStamped. Everything else in the
+package works on domain types.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import PointStamped
+from geometry_msgs.msg import Point, PointStamped
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField
 from std_msgs.msg import Header
 from visualization_msgs.msg import Marker
+
+from stereo_fuzzy_msgs.msg import FuzzyDecision
 
 from .camera_model import CameraCalibration
 from .image_encoding import SUPPORTED_ENCODINGS, ImageEncodingError, check_encoding
 from .matched_points import MatchedPoints
 from .scene_model import GroundTruth
+
+if TYPE_CHECKING:  # annotations only: nodes that never decide need not import scipy
+    from .point_selectors import BestPointDecision
 
 # --- images ----------------------------------------------------------------------------------
 
@@ -227,3 +235,61 @@ def ground_truth_to_marker(truth: GroundTruth, header: Header) -> Marker:
     msg.color.r, msg.color.g, msg.color.b, msg.color.a = 0.9, 0.7, 0.3, 0.8
     msg.text = item.object_type.value
     return msg
+
+
+# --- fuzzy best-point decisions --------------------------------------------------------------
+
+
+def _point(values: np.ndarray | None) -> Point:
+    """Return a geometry_msgs/Point; NaN (unknown) stays NaN, None gives the origin."""
+    if values is None:
+        return Point()
+    return Point(x=float(values[0]), y=float(values[1]), z=float(values[2]))
+
+
+def decision_to_message(decision: BestPointDecision, header: Header,
+                        camera_frame_id: str) -> FuzzyDecision:
+    """Return a FuzzyDecision (header.frame_id should be `world`) for one BestPointDecision.
+
+    Unknown values (no correlation area, empty areas) are NaN; rule arrays are empty for
+    selectors without rules.
+    """
+    msg = FuzzyDecision()
+    msg.header = header
+    msg.selector = decision.selector
+    msg.rule_base = decision.rule_base
+    msg.has_best_point = decision.has_best_point
+    msg.status = decision.status_text()
+    msg.best_point_world = _point(decision.best_point_world)
+    msg.best_point_camera = _point(decision.best_point_camera)
+    msg.camera_frame_id = camera_frame_id
+    msg.points_in = int(decision.points_in)
+    msg.points_valid = int(decision.points_valid)
+    msg.clusters_found = int(decision.clusters_found)
+    msg.points_used = int(decision.points_used)
+    msg.top_height = float(decision.top_height)
+    msg.border_points = [_point(row) for row in decision.border_points]
+    msg.border_distances = [float(value) for value in decision.border_distances]
+    msg.area_centres = [_point(row) for row in decision.area_centres]
+    msg.area_centres_u_left = [float(value) for value in decision.area_centres_u_left]
+    msg.area_centres_v_left = [float(value) for value in decision.area_centres_v_left]
+    msg.area_centres_u_right = [float(value) for value in decision.area_centres_u_right]
+    msg.area_point_counts = [int(value) for value in decision.area_point_counts]
+    msg.d1 = [float(value) for value in decision.d1]
+    msg.d2 = [float(value) for value in decision.d2]
+    msg.ratio = [float(value) for value in decision.ratio]
+    msg.rule_names = list(decision.rule_names)
+    msg.membership_degrees = [float(value) for value in decision.membership_degrees]
+    msg.firing_strengths = [float(value) for value in decision.firing_strengths]
+    return msg
+
+
+def best_point_to_point_stamped(decision: BestPointDecision, header: Header) -> PointStamped:
+    """Return the decision's best point in `world` as a PointStamped (header: world, stamp).
+
+    Raises:
+        ValueError: When the decision has no best point.
+    """
+    if decision.best_point_world is None:
+        raise ValueError(f'decision has no best point ({decision.status_text()})')
+    return PointStamped(header=header, point=_point(decision.best_point_world))
