@@ -8,8 +8,6 @@ that checks a best-effort subscription hears a reliable publisher (it republishe
 
 from __future__ import annotations
 
-import json
-import re
 from pathlib import Path
 
 import cv2
@@ -413,9 +411,16 @@ def test_devices_example_config_uses_declared_parameters_only():
 
 
 def test_readme_parameter_table_matches_the_specs():
-    from stereo_fuzzy_perception.stereo_sync_parameters import PARAMETERS
+    import importlib.util
 
+    spec = importlib.util.spec_from_file_location(
+        'parameter_tables', REPO_ROOT / 'scripts' / 'parameter_tables.py')
+    tables = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tables)
     readme = (PACKAGE_DIR / 'README.md').read_text()
     section = readme.split('## stereo_sync_node', 1)[1].split('\n## ', 1)[0]
-    rows = dict(re.findall(r'^\| `([a-z_]+)` \| `([^`]*)` \|', section, flags=re.MULTILINE))
-    assert rows == {spec.name: json.dumps(spec.default) for spec in PARAMETERS}
+    blocks = [match.group('node') for match in tables.BLOCK.finditer(section)]
+    assert blocks == ['stereo_sync_node'], f'one generated parameter block expected: {blocks}'
+    assert tables.rewrite_readme(section) == section, (
+        'the stereo_sync_node parameter table in the package README is stale: regenerate it '
+        "with scripts/parameter_tables.py's parameter_table('stereo_sync_node')")
