@@ -26,6 +26,7 @@ from pathlib import Path
 
 from builtin_interfaces.msg import Time
 from rclpy.serialization import serialize_message
+from rosbags.typesys.store import Typestore
 from std_msgs.msg import Header
 
 from .bag_io import COMPRESSIONS, BagError, BagWriter, format_info, read_info
@@ -79,6 +80,15 @@ def _stamp(time_ns: int) -> Time:
     return Time(sec=time_ns // 1_000_000_000, nanosec=time_ns % 1_000_000_000)
 
 
+def canonical_cdr(data: bytes, msgtype: str, typestore: Typestore) -> bytes:
+    """Return `data` re-serialized with zeroed alignment padding.
+
+    rclpy's serializer leaves whatever was in memory in the padding bytes between fields, so two
+    runs would write different bytes for the same messages; rosbags writes zeros.
+    """
+    return bytes(typestore.serialize_cdr(typestore.deserialize_cdr(data, msgtype), msgtype))
+
+
 def frame_messages(frame: StereoFrame, stamp_ns: int) -> list[tuple[str, bytes]]:
     """Return (topic, CDR bytes) of one rendered scene, every header stamped `stamp_ns` [ns]."""
     stamp = _stamp(stamp_ns)
@@ -125,7 +135,8 @@ def write_scene_bag(settings: SceneBagSettings, command: str = '') -> int:
             frame = renderer.render(scene)
             stamp_ns = round(settings.start_time_s * 1e9) + round(index * settings.period_s * 1e9)
             for order, (topic, data) in enumerate(frame_messages(frame, stamp_ns)):
-                bag.write(topic, stamp_ns + 1000 * order, data)
+                bag.write(topic, stamp_ns + 1000 * order,
+                          canonical_cdr(data, TOPICS[topic], bag.typestore))
     return len(plan)
 
 
@@ -190,6 +201,20 @@ def settings_from_arguments(args: argparse.Namespace) -> SceneBagSettings:
         start_time_s=args.start_time)
 
 
+def describe_command(arguments: Sequence[str]) -> str:
+    """Return the command line without its output path (so it does not change the content)."""
+    kept: list[str] = []
+    skip = False
+    for argument in arguments:
+        if skip:
+            skip = False
+        elif argument in ('-o', '--output'):
+            skip = True
+        elif not argument.startswith(('-o', '--output=')):
+            kept.append(argument)
+    return shlex.join(['render_scenes', *kept, '-o', 'BAG'])
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Render the scenes the command line asks for and print the bag's summary."""
     arguments = list(sys.argv[1:] if argv is None else argv)
@@ -197,8 +222,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.scenes_per_type < 1 or args.period <= 0.0:
         raise SystemExit('render_scenes: --scenes-per-type must be >= 1 and --period > 0')
     try:
-        write_scene_bag(settings_from_arguments(args),
-                        command=shlex.join(['render_scenes', *arguments]))
+        write_scene_bag(settings_from_arguments(args), command=describe_command(arguments))
     except (BagError, SceneError) as error:
         raise SystemExit(f'render_scenes: {error}') from None
     print(format_info(read_info(args.output)))
