@@ -1,0 +1,614 @@
+"""Window correlation along rectified rows: the chapter's Eqs. 7 and 8 as a dense matcher.
+
+For every left pixel (x, y) inside the region of interest, a `window_size` x `window_size` window
+is compared with the windows of the right image centred on (x - d, y), for the disparities
+d = min_disparity .. min_disparity + disparity_range - 1 (convention: left (x, y) matches right
+(x - d, y), so d > 0 for points in front of rectified cameras). The disparity with the highest
+score wins, then validity filters decide whether it is trusted:
+
+* `method='zncc'` scores with the correlation coefficient of Eq. 8 (zero-mean normalised
+  cross-correlation, -1..1): invariant to a gain and an offset of either image's intensities.
+* `method='plain'` scores with Eq. 7, the plain sum of products, divided by the two windows'
+  energies, sum(f w) / sqrt(sum f^2 sum w^2) (0..1 for non-negative intensities): comparable across
+  windows and with the same `min_score` scale, invariant to a gain but not to an offset.
+
+Validity filters (each a MatcherConfig value; a rejected pixel gets NaN and a MatchStatus code):
+
+* texture: the left window's standard deviation must reach `texture_threshold` [grey levels]; below
+  it Eq. 8 divides noise by noise. A right window below it scores 0 as a candidate.
+* score: the best score must reach `min_score`.
+* uniqueness: with costs 1 - score, the best cost times (1 + `uniqueness_ratio`) must stay below
+  every cost more than 1 px away from the best (StereoBM's uniquenessRatio, as a fraction).
+* left-right consistency: the right pixel's own best score (over all its candidates, from the
+  same scores) must be reached by a candidate within `lr_check_max_diff` [px] of the left's
+  disparity (< 0 disables the check); occluded pixels fail it.
+* sub-pixel: a parabola through the scores at the best disparity and its two neighbours refines
+  the disparity (`subpixel`).
+
+Windows lie inside the image horizontally (the window_size // 2 columns at each side get no
+disparity, as with StereoBM); rows are padded by reflection, which is exact for rectified rows, so
+the top and bottom rows are matched. A pixel near the left edge is matched against the disparities
+that keep its right window inside the image (StereoBM instead gives up on the leftmost
+min_disparity + disparity_range columns); the left-right check rejects it when its true partner
+has left the image.
+
+The speed comes from a numba kernel: window means and variances come from box filters, so each
+(pixel, disparity) cell needs only the cross term sum(f w), kept as running column sums (updated
+with one new and one old row) and running window sums along the row: O(1) per cell whatever the
+window size, with the disparity loop innermost and contiguous (the right image is stored with its
+columns reversed for that). Rows are split into bands matched in parallel. For 8-bit images the
+sums are of integers below 2^24 and therefore exact in float32.
+
+ROI ("correlation area", Fig. 2 of the chapter): only pixels inside `roi` are matched, which
+divides the work by the share of the image it covers. Preprocessing (Fig. 8): `edges` correlates
+Sobel gradient magnitudes, `binary` correlates Otsu-thresholded images.
+
+ROS-free: numpy, OpenCV and numba only.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import time
+from dataclasses import dataclass, field
+
+import cv2
+import numba
+import numpy as np
+
+METHODS = ('zncc', 'plain')
+PREPROCESS_MODES = ('none', 'edges', 'binary')
+MAX_WINDOW_SIZE = 31
+MAX_DISPARITY_RANGE = 512
+# Inside the kernel, scores are int32 fixed point with 1.0 = _SCORE_ONE; _NO_SCORE marks "no
+# candidate" (no NaN or infinity under fastmath).
+_SCORE_ONE = float(1 << 24)
+_NO_SCORE = -3 * (1 << 24)
+# Windows whose standard deviation is below this [grey levels] are flat whatever the threshold.
+_FLAT_STD = 1e-3
+
+
+class MatcherConfigError(ValueError):
+    """A matcher setting out of its allowed range, named in the message."""
+
+
+class MatcherInputError(ValueError):
+    """Images the matcher cannot use (shape, dtype, size or a region outside the image)."""
+
+
+class MatchStatus(enum.IntEnum):
+    """Why a pixel of the disparity map has, or has no, disparity."""
+
+    VALID = 0
+    OUTSIDE_ROI = 1
+    NO_CANDIDATE = 2
+    LOW_TEXTURE = 3
+    LOW_SCORE = 4
+    NOT_UNIQUE = 5
+    LR_INCONSISTENT = 6
+
+
+@dataclass(frozen=True)
+class MatcherConfig:
+    """Settings of the window-correlation matcher; validated on construction.
+
+    Attributes:
+        method: `zncc` (Eq. 8) or `plain` (Eq. 7 divided by the window energies).
+        window_size: Side of the square correlation window [px], odd, 3..31.
+        min_disparity: Smallest disparity searched [px].
+        disparity_range: Number of disparities searched [px], 1..512.
+        min_score: Lowest accepted best score (-1..1).
+        texture_threshold: Lowest accepted standard deviation of the left window [grey levels].
+        uniqueness_ratio: Margin by which the best cost (1 - score) must beat every cost more
+            than 1 px away (0 disables; 0.1 = 10 %).
+        lr_check_max_diff: Largest accepted difference between the left disparity and the
+            right pixel's own best disparity [px]; negative disables the check.
+        subpixel: Refine disparities with a parabola fit around the peak.
+        preprocess: `none`, `edges` (Sobel magnitude) or `binary` (Otsu threshold).
+        roi: Region matched, (x, y, width, height) [px] in the left rectified image; a width or
+            height of 0 means the whole image.
+    """
+
+    method: str = 'zncc'
+    window_size: int = 9
+    min_disparity: int = 0
+    disparity_range: int = 64
+    min_score: float = 0.3
+    texture_threshold: float = 2.0
+    uniqueness_ratio: float = 0.0
+    lr_check_max_diff: int = 1
+    subpixel: bool = True
+    preprocess: str = 'none'
+    roi: tuple[int, int, int, int] = field(default=(0, 0, 0, 0))
+
+    def __post_init__(self) -> None:
+        reason = self.problem()
+        if reason:
+            raise MatcherConfigError(reason)
+
+    def problem(self) -> str | None:
+        """Return why this configuration is unusable, or None."""
+        if self.method not in METHODS:
+            return f'method {self.method!r} is not one of {", ".join(METHODS)}'
+        if not _is_int(self.window_size) or not 3 <= self.window_size <= MAX_WINDOW_SIZE:
+            return f'window_size {self.window_size!r} must be an integer in 3..{MAX_WINDOW_SIZE}'
+        if self.window_size % 2 == 0:
+            return f'window_size {self.window_size} must be odd (the window has a centre pixel)'
+        if not _is_int(self.min_disparity) or abs(self.min_disparity) > 4096:
+            return f'min_disparity {self.min_disparity!r} must be an integer in -4096..4096'
+        if (not _is_int(self.disparity_range)
+                or not 1 <= self.disparity_range <= MAX_DISPARITY_RANGE):
+            return (f'disparity_range {self.disparity_range!r} must be an integer in '
+                    f'1..{MAX_DISPARITY_RANGE}')
+        if not -1.0 <= self.min_score <= 1.0:
+            return f'min_score {self.min_score} must be in -1..1 (a correlation coefficient)'
+        if not self.texture_threshold >= 0.0:
+            return f'texture_threshold {self.texture_threshold} must be >= 0 [grey levels]'
+        if not 0.0 <= self.uniqueness_ratio <= 10.0:
+            return f'uniqueness_ratio {self.uniqueness_ratio} must be in 0..10'
+        if not _is_int(self.lr_check_max_diff) or self.lr_check_max_diff > MAX_DISPARITY_RANGE:
+            return (f'lr_check_max_diff {self.lr_check_max_diff!r} must be an integer <= '
+                    f'{MAX_DISPARITY_RANGE} (negative disables the check)')
+        if self.preprocess not in PREPROCESS_MODES:
+            return (f'preprocess {self.preprocess!r} is not one of '
+                    f'{", ".join(PREPROCESS_MODES)}')
+        if len(self.roi) != 4 or not all(_is_int(value) for value in self.roi):
+            return f'roi {self.roi!r} must be four integers (x, y, width, height)'
+        if any(value < 0 for value in self.roi):
+            return f'roi {self.roi!r} must not hold negative values'
+        return None
+
+    @property
+    def max_disparity(self) -> int:
+        """Largest disparity searched [px]."""
+        return self.min_disparity + self.disparity_range - 1
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+@dataclass(frozen=True)
+class DisparityMap:
+    """Output of the matcher for one rectified pair.
+
+    Attributes:
+        disparity: (H, W) float32 disparity [px] (left x minus right x), NaN where invalid.
+        score: (H, W) float32 best score at each matched pixel (-1..1), NaN where no candidate
+            was scored (outside the region of interest).
+        status: (H, W) uint8 MatchStatus of each pixel.
+        roi: The region actually matched, (x, y, width, height) [px].
+        config: The settings used.
+    """
+
+    disparity: np.ndarray
+    score: np.ndarray
+    status: np.ndarray
+    roi: tuple[int, int, int, int]
+    config: MatcherConfig
+
+    @property
+    def valid(self) -> np.ndarray:
+        """Return the (H, W) boolean mask of valid disparities."""
+        return self.status == MatchStatus.VALID
+
+    def status_counts(self) -> dict[str, int]:
+        """Return how many pixels of the region of interest have each status, by name."""
+        x, y, width, height = self.roi
+        inside = self.status[y:y + height, x:x + width]
+        counts = np.bincount(inside.ravel(), minlength=len(MatchStatus))
+        return {status.name.lower(): int(counts[status]) for status in MatchStatus}
+
+
+# --- input preparation ------------------------------------------------------------------------
+
+
+def preprocess_image(image: np.ndarray, mode: str) -> np.ndarray:
+    """Apply the chapter's optional preprocessing (Fig. 8) to a grey image.
+
+    Args:
+        image: (H, W) grey image, uint8, uint16 or float.
+        mode: `none` (returned as is), `edges` (Sobel gradient magnitude, uint8, scaled so
+            that a full-range step reads 255) or `binary` (Otsu threshold, 0 or 255).
+
+    Returns:
+        The preprocessed (H, W) image.
+
+    Raises:
+        MatcherConfigError: For an unknown mode.
+    """
+    if mode == 'none':
+        return image
+    if mode not in PREPROCESS_MODES:
+        raise MatcherConfigError(
+            f'preprocess {mode!r} is not one of {", ".join(PREPROCESS_MODES)}')
+    grey8 = _to_uint8(image)
+    if mode == 'binary':
+        _, binary = cv2.threshold(grey8, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+        return binary
+    gx = cv2.Sobel(grey8, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(grey8, cv2.CV_32F, 0, 1, ksize=3)
+    magnitude = cv2.magnitude(gx, gy) * np.float32(255.0 / (4.0 * 255.0))
+    return np.clip(np.rint(magnitude), 0, 255).astype(np.uint8)
+
+
+def _to_uint8(image: np.ndarray) -> np.ndarray:
+    if image.dtype == np.uint8:
+        return image
+    if image.dtype == np.uint16:
+        return (image >> 8).astype(np.uint8)
+    return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+
+
+def _intensity_float32(image: np.ndarray, centre: bool) -> np.ndarray:
+    """Return the image as float32 on a 0..255 scale, shifted by -128 when `centre`.
+
+    8-bit images stay integer-valued, which keeps the kernel's window sums exact.
+    """
+    if image.dtype == np.uint8:
+        values = image.astype(np.float32)
+    elif image.dtype == np.uint16:
+        values = image.astype(np.float32) * np.float32(255.0 / 65535.0)
+    else:
+        values = image.astype(np.float32)
+    if centre:
+        values -= np.float32(128.0)
+    return values
+
+
+def _check_images(left: np.ndarray, right: np.ndarray, config: MatcherConfig) -> None:
+    for side, image in (('left', left), ('right', right)):
+        if image.ndim != 2:
+            raise MatcherInputError(
+                f'{side} image has shape {image.shape}; the matcher needs one grey channel (H, W)')
+        if not (np.issubdtype(image.dtype, np.integer) or np.issubdtype(image.dtype, np.floating)):
+            raise MatcherInputError(f'{side} image has unsupported dtype {image.dtype}')
+    if left.shape != right.shape:
+        raise MatcherInputError(
+            f'left image is {left.shape[1]}x{left.shape[0]} but right image is '
+            f'{right.shape[1]}x{right.shape[0]}: a rectified pair has one size')
+    height, width = left.shape
+    if height < 1 or width < 1:
+        raise MatcherInputError(f'image {width}x{height} is empty')
+
+
+def effective_roi(config: MatcherConfig, width: int, height: int) -> tuple[int, int, int, int]:
+    """Return the region matched for an image of `width` x `height` [px], clipped to it.
+
+    Raises:
+        MatcherInputError: When the configured region lies outside the image.
+    """
+    x, y, roi_width, roi_height = config.roi
+    if roi_width == 0 or roi_height == 0:
+        return 0, 0, width, height
+    x_end, y_end = min(width, x + roi_width), min(height, y + roi_height)
+    if x >= width or y >= height or x_end <= x or y_end <= y:
+        raise MatcherInputError(
+            f'roi {config.roi} (x, y, width, height) lies outside the {width}x{height} image')
+    return x, y, x_end - x, y_end - y
+
+
+# --- window statistics ------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, fastmath=True, nogil=True, parallel=True)
+def _window_statistics(sums, squares, count, zero_mean, texture_threshold, reverse,
+                       offset_out, mean_out, scale_out, texture_out):
+    """Turn window sums into the kernel's per-pixel terms (columns reversed when `reverse`).
+
+    offset = count * mean * scale, mean = window mean (0 for Eq. 7), scale = 1 / sqrt(energy)
+    with energy the sum of squared deviations (Eq. 8) or of squares (Eq. 7), 0 where the window
+    is textureless; texture = the window's standard deviation reaches the threshold.
+    """
+    height, width = sums.shape
+    for y in numba.prange(height):
+        for x in range(width):
+            total = np.float64(sums[y, x])
+            square_total = np.float64(squares[y, x])
+            deviation = max(square_total - total * total / count, 0.0)
+            std = math.sqrt(deviation / count)
+            textured = std >= texture_threshold and std > _FLAT_STD
+            energy = deviation if zero_mean else square_total
+            mean = total / count if zero_mean else 0.0
+            scale = 1.0 / math.sqrt(energy) if textured and energy > 0.0 else 0.0
+            column = width - 1 - x if reverse else x
+            offset_out[y, column] = count * mean * scale
+            mean_out[y, column] = mean
+            scale_out[y, column] = scale
+            texture_out[y, column] = textured
+
+
+# --- the kernel -------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, fastmath=True, nogil=True)
+def _update_column(column_sums, column, left_padded, right_reversed, y, first_row, radius,
+                   min_disparity, disparity_range):
+    """Bring the cross-term sums of `column` to window rows y-r..y+r (padded rows y..y+2r).
+
+    column_sums[column, i] = sum over the window rows of left[row, column] *
+    right[row, column - min_disparity - i], for the i whose right column is inside the image.
+    """
+    width = right_reversed.shape[1]
+    low = max(0, column - min_disparity - width + 1)
+    high = min(disparity_range - 1, column - min_disparity)
+    if low > high:
+        return
+    count = numba.uint64(high - low + 1)
+    start = numba.uint64(width - 1 - column + min_disparity + low)
+    sums = column_sums[column, low:]
+    if first_row:
+        for lane in range(numba.uint64(0), count):
+            sums[lane] = 0.0
+        for row in range(y, y + 2 * radius + 1):
+            value = left_padded[row, column]
+            right_row = right_reversed[row]
+            for lane in range(numba.uint64(0), count):
+                sums[lane] += value * right_row[start + lane]
+    else:
+        new_value = left_padded[y + 2 * radius, column]
+        old_value = left_padded[y - 1, column]
+        new_row = right_reversed[y + 2 * radius]
+        old_row = right_reversed[y - 1]
+        for lane in range(numba.uint64(0), count):
+            sums[lane] += (new_value * new_row[start + lane]
+                           - old_value * old_row[start + lane])
+
+
+@numba.njit(cache=True, fastmath=True, nogil=True)
+def _candidate_range(x, width, radius, min_disparity, disparity_range):
+    """Return (low, high) disparity indices whose right window lies inside the image."""
+    low = max(0, x - min_disparity - (width - 1 - radius))
+    high = min(disparity_range - 1, x - min_disparity - radius)
+    return low, high
+
+
+@numba.njit(cache=True, fastmath=True, nogil=True, parallel=True)
+def _correlate(left_padded, right_reversed, left_scale, left_offset, right_mean_reversed,
+               right_scale_reversed, texture_ok, radius, min_disparity, disparity_range,
+               x_begin, x_end, y_begin, y_end, out_x_begin, out_x_end, min_score,
+               uniqueness_ratio, lr_max_diff, subpixel, band_count,
+               disparity_out, score_out, status_out):
+    """Match rows y_begin..y_end-1 over columns x_begin..x_end-1 (inside r..W-1-r).
+
+    Decisions are written for columns out_x_begin..out_x_end-1. Disparity index i means
+    disparity min_disparity + i. Column-reversed right arrays are indexed by W - 1 - x_right,
+    with x_right = x - min_disparity - i, so that they are contiguous in i. Scores are kept as
+    int32 fixed point (_SCORE_ONE = 1.0): LLVM vectorises integer maximum reductions, not
+    floating-point ones, and 2^-24 is finer than float32 resolves a score anyway.
+    """
+    width = texture_ok.shape[1]
+    u64 = numba.uint64
+    full = u64(disparity_range)
+    one = np.float32(_SCORE_ONE)
+    none = np.int32(_NO_SCORE)
+    rows = y_end - y_begin
+    band_rows = (rows + band_count - 1) // band_count
+    for band in numba.prange(band_count):
+        y_first = y_begin + band * band_rows
+        y_stop = min(y_end, y_first + band_rows)
+        if y_first >= y_stop:
+            continue
+        column_sums = np.zeros((width, disparity_range), np.float32)
+        window_sums = np.zeros(disparity_range, np.float32)
+        row_scores = np.full((width, disparity_range), none, np.int32)
+        right_best = np.empty(width, np.int32)
+        best_score = np.full(width, none, np.int32)
+        for y in range(y_first, y_stop):
+            first_row = y == y_first
+            for column in range(width):
+                right_best[column] = none
+            if first_row:
+                for column in range(x_begin - radius, x_end + radius):
+                    _update_column(column_sums, column, left_padded, right_reversed, y, True,
+                                   radius, min_disparity, disparity_range)
+            else:
+                for column in range(x_begin - radius, x_begin + radius):
+                    _update_column(column_sums, column, left_padded, right_reversed, y, False,
+                                   radius, min_disparity, disparity_range)
+            means = right_mean_reversed[y]
+            scales = right_scale_reversed[y]
+            best = right_best
+            for x in range(x_begin, x_end):
+                newest = x + radius
+                scale = left_scale[y, x] * one
+                offset = left_offset[y, x] * one
+                low, high = _candidate_range(x, width, radius, min_disparity, disparity_range)
+                scores = row_scores[x]
+                peak = none
+                if not first_row and x > x_begin and low == 0 and high == disparity_range - 1:
+                    # Interior pixel, every disparity valid. Three loops rather than one: each
+                    # touches few enough arrays for LLVM's runtime alias checks, so all vectorise.
+                    added = column_sums[newest]
+                    removed = column_sums[x - radius - 1]
+                    new_value = left_padded[y + 2 * radius, newest]
+                    old_value = left_padded[y - 1, newest]
+                    new_row = right_reversed[y + 2 * radius]
+                    old_row = right_reversed[y - 1]
+                    start = u64(width - 1 - newest + min_disparity)
+                    base = u64(width - 1 - x + min_disparity)
+                    for lane in range(u64(0), full):
+                        column_total = added[lane] + (new_value * new_row[start + lane]
+                                                      - old_value * old_row[start + lane])
+                        added[lane] = column_total
+                        window_sums[lane] += column_total - removed[lane]
+                    for lane in range(u64(0), full):
+                        score = np.int32((window_sums[lane] * scale - offset * means[base + lane])
+                                         * scales[base + lane])
+                        scores[lane] = score
+                        peak = score if score > peak else peak
+                    for lane in range(u64(0), full):
+                        score = scores[lane]
+                        previous = best[base + lane]
+                        best[base + lane] = score if score > previous else previous
+                    best_score[x] = peak
+                    continue
+                if not first_row:
+                    _update_column(column_sums, newest, left_padded, right_reversed, y, False,
+                                   radius, min_disparity, disparity_range)
+                if x == x_begin:
+                    for index in range(disparity_range):
+                        window_sums[index] = 0.0
+                    for column in range(x - radius, newest + 1):
+                        sums = column_sums[column]
+                        for index in range(disparity_range):
+                            window_sums[index] += sums[index]
+                else:
+                    added = column_sums[newest]
+                    removed = column_sums[x - radius - 1]
+                    for index in range(disparity_range):
+                        window_sums[index] += added[index] - removed[index]
+                for index in range(disparity_range):
+                    scores[index] = none
+                if low <= high:
+                    base = u64(width - 1 - x + min_disparity)
+                    for lane in range(u64(low), u64(high + 1)):
+                        score = np.int32((window_sums[lane] * scale - offset * means[base + lane])
+                                         * scales[base + lane])
+                        scores[lane] = score
+                        peak = score if score > peak else peak
+                        previous = best[base + lane]
+                        best[base + lane] = score if score > previous else previous
+                best_score[x] = peak
+            for x in range(out_x_begin, out_x_end):
+                peak = best_score[x]
+                if peak == none:
+                    status_out[y, x] = 2
+                    continue
+                score_out[y, x] = peak / one
+                if not texture_ok[y, x]:
+                    status_out[y, x] = 3
+                    continue
+                if peak < min_score * one:
+                    status_out[y, x] = 4
+                    continue
+                scores = row_scores[x]
+                chosen = np.int32(disparity_range)
+                for lane in range(u64(0), full):
+                    candidate = np.int32(lane) if scores[lane] >= peak else np.int32(
+                        disparity_range)
+                    chosen = candidate if candidate < chosen else chosen
+                if uniqueness_ratio > 0.0:
+                    second = none
+                    for index in range(0, chosen - 1):
+                        value = scores[index]
+                        second = value if value > second else second
+                    for index in range(chosen + 2, disparity_range):
+                        value = scores[index]
+                        second = value if value > second else second
+                    if one - second <= (one - peak) * (1.0 + uniqueness_ratio):
+                        status_out[y, x] = 5
+                        continue
+                if lr_max_diff >= 0:
+                    right_x = x - min_disparity - chosen
+                    near = none
+                    for step in range(-lr_max_diff, lr_max_diff + 1):
+                        neighbour = x + step
+                        index = chosen + step
+                        if x_begin <= neighbour < x_end and 0 <= index < disparity_range:
+                            value = row_scores[neighbour, index]
+                            near = value if value > near else near
+                    if near < right_best[width - 1 - right_x]:
+                        status_out[y, x] = 6
+                        continue
+                offset_px = 0.0
+                if subpixel and 0 < chosen < disparity_range - 1:
+                    below = scores[chosen - 1]
+                    above = scores[chosen + 1]
+                    if below != none and above != none:
+                        curvature = np.float64(below) + np.float64(above) - 2.0 * peak
+                        if curvature < 0.0:
+                            offset_px = min(0.5, max(-0.5, 0.5 * (below - above) / curvature))
+                status_out[y, x] = 0
+                disparity_out[y, x] = min_disparity + chosen + offset_px
+
+
+# --- public API -------------------------------------------------------------------------------
+
+
+def match(left: np.ndarray, right: np.ndarray, config: MatcherConfig | None = None,
+          band_count: int | None = None) -> DisparityMap:
+    """Match a rectified grey pair by window correlation and return the disparity map.
+
+    Args:
+        left: (H, W) left rectified grey image (uint8 gives exact sums; uint16 and float are
+            scaled to 0..255).
+        right: (H, W) right rectified grey image, same size.
+        config: Matcher settings; MatcherConfig() when None.
+        band_count: Row bands matched in parallel; by default 4 per numba thread.
+
+    Returns:
+        The disparity map [px], scores and per-pixel status.
+
+    Raises:
+        MatcherInputError: For images that are not one grey channel, differ in size, are
+            smaller than the window, or a region of interest outside the image.
+    """
+    config = config or MatcherConfig()
+    _check_images(left, right, config)
+    height, width = left.shape
+    if height < config.window_size or width < config.window_size:
+        raise MatcherInputError(
+            f'image {width}x{height} is smaller than the {config.window_size}x'
+            f'{config.window_size} correlation window')
+    roi_x, roi_y, roi_width, roi_height = effective_roi(config, width, height)
+    radius = config.window_size // 2
+    if config.preprocess != 'none':
+        left = preprocess_image(left, config.preprocess)
+        right = preprocess_image(right, config.preprocess)
+    zero_mean = config.method == 'zncc'
+    left_padded = cv2.copyMakeBorder(_intensity_float32(left, zero_mean), radius, radius, 0, 0,
+                                     cv2.BORDER_REFLECT_101)
+    right_padded = cv2.copyMakeBorder(_intensity_float32(right, zero_mean), radius, radius, 0,
+                                      0, cv2.BORDER_REFLECT_101)
+    left_terms = _statistics(left_padded, radius, height, config, reverse=False)
+    right_terms = _statistics(right_padded, radius, height, config, reverse=True)
+    right_reversed = np.ascontiguousarray(right_padded[:, ::-1])
+
+    disparity = np.full((height, width), np.nan, dtype=np.float32)
+    score = np.full((height, width), np.nan, dtype=np.float32)
+    status = np.full((height, width), MatchStatus.OUTSIDE_ROI, dtype=np.uint8)
+    status[roi_y:roi_y + roi_height, roi_x:roi_x + roi_width] = MatchStatus.NO_CANDIDATE
+    # The left-right check needs every candidate of the right pixels the region reaches.
+    reach = config.disparity_range - 1 if config.lr_check_max_diff >= 0 else 0
+    x_begin = max(radius, roi_x - reach)
+    x_end = min(width - radius, roi_x + roi_width + reach)
+    out_begin, out_end = max(radius, roi_x), min(width - radius, roi_x + roi_width)
+    if out_begin < out_end:
+        bands = band_count or 4 * numba.get_num_threads()
+        bands = max(1, min(bands, roi_height))
+        _correlate(left_padded, right_reversed, left_terms[2], left_terms[0], right_terms[1],
+                   right_terms[2], left_terms[3], radius, config.min_disparity,
+                   config.disparity_range, x_begin, x_end, roi_y, roi_y + roi_height,
+                   out_begin, out_end, np.float32(config.min_score),
+                   np.float32(config.uniqueness_ratio), int(config.lr_check_max_diff),
+                   bool(config.subpixel), bands, disparity, score, status)
+    return DisparityMap(disparity, score, status, (roi_x, roi_y, roi_width, roi_height), config)
+
+
+def _statistics(padded: np.ndarray, radius: int, height: int, config: MatcherConfig,
+                reverse: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return (offset, mean, scale, texture_ok) maps of one image; see _window_statistics."""
+    size = 2 * radius + 1
+    sums = cv2.boxFilter(padded, -1, (size, size), normalize=False)[radius:radius + height]
+    squares = cv2.boxFilter(padded * padded, -1, (size, size),
+                            normalize=False)[radius:radius + height]
+    shape = sums.shape
+    offset = np.empty(shape, np.float32)
+    mean = np.empty(shape, np.float32)
+    scale = np.empty(shape, np.float32)
+    texture_ok = np.empty(shape, np.bool_)
+    _window_statistics(np.ascontiguousarray(sums), np.ascontiguousarray(squares),
+                       float(size * size), config.method == 'zncc',
+                       float(config.texture_threshold), reverse, offset, mean, scale, texture_ok)
+    return offset, mean, scale, texture_ok
+
+
+def warm_up() -> float:
+    """Compile (or load from numba's cache) the matching kernels; return the time taken [s]."""
+    start = time.perf_counter()
+    rng = np.random.default_rng(0)
+    image = rng.integers(0, 256, size=(16, 24), dtype=np.uint8)
+    match(image, image, MatcherConfig(window_size=3, disparity_range=4, uniqueness_ratio=0.1))
+    return time.perf_counter() - start
