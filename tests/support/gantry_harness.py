@@ -21,10 +21,13 @@ TIMEOUT_S = 20.0
 
 
 def start_simulator(tmp_path: Path, homing: bool = False, faults: FaultInjection | None = None,
+                    settings: ControllerSettings | None = None,
+                    work_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0),
                     **options: Any) -> GrblSimulator:
     """Start a simulated Grbl on a pty linked at tmp_path/gantry_tty, logging received lines."""
-    settings = ControllerSettings(homing_enabled=homing)
-    controller = GrblController(settings, faults or FaultInjection())
+    settings = settings or ControllerSettings(homing_enabled=homing)
+    controller = GrblController(settings, faults or FaultInjection(),
+                                work_offset_mm=work_offset_mm)
     sim_options = SimulatorOptions(link_path=str(tmp_path / 'gantry_tty'),
                                    time_scale=options.pop('time_scale', TIME_SCALE),
                                    received_lines_log=str(tmp_path / 'received.log'), **options)

@@ -173,8 +173,14 @@ class GantryDriverNode(Node):
         self._wakeup.trigger()
 
     def _on_link_log(self, level: str, message: str) -> None:
+        # One call site per severity: rclpy refuses a severity change at one call site.
         logger = self.get_logger()
-        {'info': logger.info, 'warn': logger.warning}.get(level, logger.error)(message)
+        if level == 'info':
+            logger.info(message)
+        elif level == 'warn':
+            logger.warning(message)
+        else:
+            logger.error(message)
 
     def _drain_link_events(self) -> None:
         snapshot_changed = False

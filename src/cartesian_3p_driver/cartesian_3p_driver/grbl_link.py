@@ -256,6 +256,8 @@ class GrblLink:
         self._active: _Job | None = None
         self._system: _SystemCommand | None = None
         self._stop_sequence: _StopSequence | None = None
+        # A home/unlock that succeeded, answered once the preamble is acknowledged again.
+        self._done_when_ready: RequestFinished | None = None
         self._fault = ''
 
     # -- public API (any thread) --------------------------------------------------------------
@@ -613,6 +615,9 @@ class GrblLink:
     # -- outgoing -----------------------------------------------------------------------------
 
     def _on_ready(self, conn: _Connection) -> None:
+        if self._done_when_ready is not None:
+            done, self._done_when_ready = self._done_when_ready, None
+            self._finished(done)
         stop = self._stop_sequence
         if stop is not None and stop.stage == 'ready':
             self._end_stop_sequence(True, 'stopped')
@@ -687,7 +692,7 @@ class GrblLink:
         conn.preamble_sent = conn.ready = False
         conn.state_known = False
         self._query_status(conn)
-        self._finished(RequestFinished(system.request_id, True, message))
+        self._done_when_ready = RequestFinished(system.request_id, True, message)
         self._emit_snapshot()
 
     def _begin_stop_sequence(self, reason: str, request_id: int | None = None,
@@ -857,6 +862,10 @@ class GrblLink:
             self._finished(MoveFinished(job.job_id, False, outcome, position))
 
     def _finish_system(self, success: bool, message: str) -> None:
+        if self._done_when_ready is not None:
+            done, self._done_when_ready = self._done_when_ready, None
+            self._finished(replace(done, success=False, message=f'{done.message}, but then '
+                                                                f'{message}'))
         if self._system is not None:
             system, self._system = self._system, None
             self._finished(RequestFinished(system.request_id, success, message))
