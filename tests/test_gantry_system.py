@@ -29,7 +29,7 @@ def test_best_point_to_idle_at_target_across_processes(ros_context, start_ros_pr
         '-p', 'homing_enabled:=false', '-p', f'received_lines_log:={received_log}')
     driver = start_ros_process(
         'cartesian_3p_driver', 'gantry_driver_node', '--ros-args',
-        '--params-file', str(CONFIG / 'gantry_driver.yaml'),
+        '--params-file', str(CONFIG / 'gantry_driver_node.yaml'),
         '-p', f'port:={link}', '-p', f'sent_lines_log:={sent_log}',
         '-p', 'reconnect_max_s:=0.5')
     node = rclpy.create_node('gantry_system_probe', context=ros_context)
