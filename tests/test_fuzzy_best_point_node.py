@@ -49,10 +49,10 @@ class Harness:
         from geometry_msgs.msg import PointStamped
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.parameter import Parameter
-        from stereo_fuzzy_perception import qos
         from stereo_fuzzy_perception.fuzzy_best_point_node import FuzzyBestPointNode
 
         from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
+        from stereo_fuzzy_perception import qos
 
         parameters = [Parameter(name, value=value) for name, value in (overrides or {}).items()]
         self.node = FuzzyBestPointNode(context=context, parameter_overrides=parameters)

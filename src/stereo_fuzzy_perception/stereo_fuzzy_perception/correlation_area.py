@@ -24,7 +24,6 @@ import numpy as np
 from scipy import ndimage
 
 from .matched_points import MatchedPoints
-from .rig_geometry import transform_points
 
 # Status codes: why no best point could be chosen (also the diagnostics keys).
 STATUS_OK = 'ok'
@@ -34,7 +33,8 @@ DEGENERATE_AREA = 'degenerate_area'
 NO_RULE_FIRED = 'no_rule_fired'
 
 TOP_QUANTILE = 0.99
-"""The robust top of a cluster: this quantile of its heights (ignores the highest 1 %)."""
+"""The robust top of a cluster: this quantile of its heights (ignores the highest 1 %; the value
+of rank floor(0.99 (n - 1)), no interpolation)."""
 
 MAX_GRID_CELLS = 4_000_000
 """Upper bound on the clustering grid; beyond it the cells grow (recorded in cluster_cell_m)."""
@@ -128,19 +128,42 @@ class CorrelationArea:
 
 
 def _label_clusters(world: np.ndarray, gap: float) -> tuple[np.ndarray, int, float]:
-    """Return a cluster label per point (0..n-1), the number of clusters and the cell size."""
-    low = world.min(axis=0)
-    extent = world.max(axis=0) - low
+    """Return a cluster label per point (0..n-1), the number of clusters and the cell size.
+
+    Args:
+        world: (3, N) point coordinates [m], one row per axis.
+        gap: Cell size [m].
+    """
+    low = np.array([row.min() for row in world])
+    extent = np.array([row.max() for row in world]) - low
     cell = gap
     cells = np.floor(extent / cell).astype(np.int64) + 1
     if float(np.prod(cells.astype(float))) > MAX_GRID_CELLS:
         cell = max(gap, float(np.cbrt(np.prod(extent + gap) / MAX_GRID_CELLS)) * 1.01)
         cells = np.floor(extent / cell).astype(np.int64) + 1
-    index = np.minimum(np.floor((world - low) / cell).astype(np.int64), cells - 1)
+    index = [np.minimum(((row - start) * (1.0 / cell)).astype(np.int64), count - 1)
+             for row, start, count in zip(world, low, cells, strict=True)]
+    linear = (index[0] * cells[1] + index[1]) * cells[2] + index[2]
     occupied = np.zeros(tuple(int(n) for n in cells), dtype=bool)
-    occupied[index[:, 0], index[:, 1], index[:, 2]] = True
+    occupied.ravel()[linear] = True
     labels, count = ndimage.label(occupied, structure=np.ones((3, 3, 3), dtype=bool))
-    return labels[index[:, 0], index[:, 1], index[:, 2]] - 1, int(count), cell
+    return labels.ravel()[linear] - 1, int(count), cell
+
+
+def _order_statistic(values: np.ndarray, fraction: float) -> float:
+    """Return the value of rank floor(fraction * (n - 1)) in ascending order (no interpolation)."""
+    rank = int(fraction * (len(values) - 1))
+    return float(np.partition(values, rank)[rank])
+
+
+def _median(values: np.ndarray) -> float:
+    """Return the median (mean of the two middle values for an even count)."""
+    count = len(values)
+    middle = count // 2
+    if count % 2:
+        return float(np.partition(values, middle)[middle])
+    pair = np.partition(values, (middle - 1, middle))[middle - 1:middle + 1]
+    return float(0.5 * (pair[0] + pair[1]))
 
 
 def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
@@ -163,20 +186,23 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     if reason:
         raise CorrelationAreaError(reason)
     points_in = len(points)
+    pose = np.asarray(world_from_camera, dtype=float)
     xyz = np.asarray(points.xyz, dtype=float).reshape(-1, 3)
-    columns = [np.asarray(column, dtype=float).reshape(-1) for column in
+    # (3, N), one contiguous row per axis; NaN / inf rows fail every comparison below
+    world = np.dot(pose[:3, :3], xyz.T)
+    world += pose[:3, 3:4]
+    columns = [np.asarray(column).reshape(-1) for column in
                (points.u_left, points.v_left, points.u_right, points.score)]
-    finite = np.all(np.isfinite(xyz), axis=1)
+    low, high = config.workspace_min, config.workspace_max
+    floor = max(low[2], config.surface_margin_m)
+    x, y, z = world
+    inside = (x >= low[0]) & (x <= high[0]) & (y >= low[1]) & (y <= high[1])
+    inside &= (z >= floor) & (z <= high[2])
     for column in columns:
-        finite &= np.isfinite(column)
-    world = transform_points(np.asarray(world_from_camera, dtype=float), xyz[finite])
-    low = np.asarray(config.workspace_min, dtype=float)
-    high = np.asarray(config.workspace_max, dtype=float)
-    floor = max(low[2], 0.0 + config.surface_margin_m)
-    inside = np.all((world >= low) & (world <= high), axis=1) & (world[:, 2] >= floor)
-    world = world[inside]
-    u_left, v_left, u_right, score = (column[finite][inside] for column in columns)
-    valid = len(world)
+        inside &= np.isfinite(column)
+    selected = np.flatnonzero(inside)
+    world = np.compress(inside, world, axis=1)
+    valid = len(selected)
 
     def refused(status: str, why: str, clusters: int = 0, cell: float = math.nan
                 ) -> CorrelationArea:
@@ -189,22 +215,19 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                                   'workspace box and above the work surface')
     labels, clusters, cell = _label_clusters(world, config.cluster_gap_m)
     if config.keep_largest_cluster and clusters > 1:
-        largest = int(np.argmax(np.bincount(labels, minlength=clusters)))
-        keep = labels == largest
-        world, u_left, v_left, u_right, score = (
-            world[keep], u_left[keep], v_left[keep], u_right[keep], score[keep])
-    z = world[:, 2]
-    top = float(np.quantile(z, TOP_QUANTILE))
-    band = z >= top - config.top_band_m
-    world, u_left, v_left, u_right, score = (
-        world[band], u_left[band], v_left[band], u_right[band], score[band])
-    used = len(world)
+        keep = labels == int(np.argmax(np.bincount(labels, minlength=clusters)))
+        world, selected = np.compress(keep, world, axis=1), selected[keep]
+    top = _order_statistic(world[2], TOP_QUANTILE)
+    band = world[2] >= top - config.top_band_m
+    world, selected = np.compress(band, world, axis=1), selected[band]
+    used = len(selected)
     if used < config.min_points:
         return refused(TOO_FEW_POINTS, f'{used} points in the correlation area, need '
                                        f'min_points={config.min_points}', clusters, cell)
+    u_left, v_left, u_right, score = (column[selected].astype(float) for column in columns)
     return CorrelationArea(STATUS_OK, '', points_in, valid, clusters, used,
-                           float(np.median(world[:, 2])), world, u_left, v_left, u_right, score,
-                           cell)
+                           _median(world[2]), np.ascontiguousarray(world.T), u_left,
+                           v_left, u_right, score, cell)
 
 
 @dataclass(frozen=True)
@@ -256,13 +279,13 @@ class FourAreas:
         return np.asarray((counts @ self.centres[index]) / counts.sum())
 
 
-def _extreme_index(key: np.ndarray, ties: np.ndarray, largest: bool) -> int:
-    """Index of the min (max) of `key`; ties broken by the smallest row of `ties` (N, k)."""
+def _extreme_index(key: np.ndarray, ties: list[np.ndarray], largest: bool) -> int:
+    """Index of the min (max) of `key`; ties broken by the smallest (ties[0], ties[1], ...)."""
     target = key.max() if largest else key.min()
     candidates = np.flatnonzero(key == target)
     if len(candidates) == 1:
         return int(candidates[0])
-    order = np.lexsort(ties[candidates].T[::-1])
+    order = np.lexsort([column[candidates] for column in ties][::-1])
     return int(candidates[order[0]])
 
 
@@ -281,7 +304,7 @@ def split_into_areas(area: CorrelationArea, left_principal: tuple[float, float],
         have NaN centres and ratios.
     """
     u, v, ur, world = area.u_left, area.v_left, area.u_right, area.xyz_world
-    ties = np.column_stack([u, v, world])
+    ties = [u, v, world[:, 0], world[:, 1], world[:, 2]]
     border_index = [_extreme_index(u, ties, False), _extreme_index(u, ties, True),
                     _extreme_index(v, ties, False), _extreme_index(v, ties, True)]
     border_points = world[border_index]
@@ -297,7 +320,8 @@ def split_into_areas(area: CorrelationArea, left_principal: tuple[float, float],
         def area_mean(values: np.ndarray) -> np.ndarray:
             return np.bincount(labels, weights=values, minlength=4) / counts
 
-        centres = np.column_stack([area_mean(world[:, axis]) for axis in range(3)])
+        centres = np.column_stack([area_mean(np.ascontiguousarray(world[:, axis]))
+                                   for axis in range(3)])
         cu, cv, cur = area_mean(u), area_mean(v), area_mean(ur)
         d1 = np.hypot(cu - left_principal[0], cv - left_principal[1])
         d2 = np.hypot(cur - right_principal[0], cv - right_principal[1])
