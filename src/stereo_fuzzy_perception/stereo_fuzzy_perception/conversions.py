@@ -13,18 +13,20 @@ from typing import TYPE_CHECKING
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, PointStamped
-from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField
+from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField, RegionOfInterest
 from std_msgs.msg import Header
+from stereo_msgs.msg import DisparityImage
 from visualization_msgs.msg import Marker
 
-from stereo_fuzzy_msgs.msg import FuzzyDecision
+from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches, StereoPair
 
-from .camera_model import CameraCalibration
-from .image_encoding import SUPPORTED_ENCODINGS, ImageEncodingError, check_encoding
+from .camera_model import CameraCalibration, StereoCalibration
+from .image_encoding import SUPPORTED_ENCODINGS, ImageEncodingError, check_encoding, to_gray
 from .matched_points import MatchedPoints
 from .scene_model import GroundTruth
 
 if TYPE_CHECKING:  # annotations only: nodes that never decide need not import scipy
+    from .correlation import DisparityMap, MatcherConfig
     from .point_selectors import BestPointDecision
 
 # --- images ----------------------------------------------------------------------------------
@@ -293,3 +295,63 @@ def best_point_to_point_stamped(decision: BestPointDecision, header: Header) -> 
     if decision.best_point_world is None:
         raise ValueError(f'decision has no best point ({decision.status_text()})')
     return PointStamped(header=header, point=_point(decision.best_point_world))
+
+
+# --- correlation stage -----------------------------------------------------------------------
+
+
+def stereo_pair_to_domain(pair: StereoPair) -> tuple[np.ndarray, np.ndarray, StereoCalibration]:
+    """Decode a StereoPair into grey left and right arrays and the pair's calibration.
+
+    The calibration is not validated here (see StereoCalibration.problem()).
+
+    Raises:
+        ImageEncodingError: For an unsupported encoding or a malformed image buffer.
+    """
+    left = to_gray(image_to_array(pair.left_image), pair.left_image.encoding)
+    right = to_gray(image_to_array(pair.right_image), pair.right_image.encoding)
+    calibration = StereoCalibration(camera_info_to_calibration(pair.left_info),
+                                    camera_info_to_calibration(pair.right_info))
+    return left, right, calibration
+
+
+def stereo_matches_message(header: Header, rectified: StereoCalibration, points: MatchedPoints,
+                           config: MatcherConfig) -> StereoMatches:
+    """Pack triangulated matches, the rectified calibration and the matcher settings."""
+    msg = StereoMatches()
+    msg.header = header
+    msg.left_info = calibration_to_camera_info(rectified.left, header)
+    msg.right_info = calibration_to_camera_info(rectified.right, header)
+    msg.points = matched_points_to_cloud(points, header)
+    msg.method = config.method
+    msg.window_size = int(config.window_size)
+    msg.min_disparity = int(config.min_disparity)
+    msg.disparity_range = int(config.disparity_range)
+    return msg
+
+
+def disparity_image_message(disparity_map: DisparityMap, rectified: StereoCalibration,
+                            header: Header) -> DisparityImage:
+    """Pack a disparity map as stereo_msgs/DisparityImage (32FC1), as stereo_image_proc does.
+
+    Disparities are shifted by the principal-point difference, d - (cx_l - cx_r), as the message
+    defines them; invalid pixels get min_disparity - 1 (below the searched range).
+    """
+    shift = float(rectified.left.P[0, 2] - rectified.right.P[0, 2])
+    config = disparity_map.config
+    low = float(config.min_disparity) - shift
+    image = np.where(np.isfinite(disparity_map.disparity), disparity_map.disparity - shift,
+                     low - 1.0).astype(np.float32)
+    msg = DisparityImage()
+    msg.header = header
+    msg.image = Image(header=header, height=image.shape[0], width=image.shape[1],
+                      encoding='32FC1', is_bigendian=0, step=4 * image.shape[1],
+                      data=image.tobytes())
+    msg.f = float(rectified.left.P[0, 0])
+    msg.t = float(rectified.baseline_m)
+    x, y, width, height = disparity_map.roi
+    msg.valid_window = RegionOfInterest(x_offset=x, y_offset=y, width=width, height=height)
+    msg.min_disparity = low
+    msg.max_disparity = float(config.max_disparity) - shift
+    msg.delta_d = 1.0 / 16.0 if config.subpixel else 1.0
+    return msg
