@@ -37,8 +37,8 @@ def triangular_degree(x: np.ndarray | float, term: TriangularTerm) -> np.ndarray
 def membership_degrees(rule_base: RuleBase, ratios: np.ndarray) -> np.ndarray:
     """Return the premise degree of every rule, shape (..., L) for ratios of shape (..., 4)."""
     ratios = np.asarray(ratios, dtype=float)
-    columns = [triangular_degree(ratios[..., rule.area - 1], rule_base.term(rule.term))
-               for rule in rule_base.rules]
+    by_term = {term.name: triangular_degree(ratios, term) for term in rule_base.terms}
+    columns = [by_term[rule.term][..., rule.area - 1] for rule in rule_base.rules]
     return np.stack(columns, axis=-1)
 
 
@@ -81,15 +81,16 @@ def consequent_base_points(rule_base: RuleBase, centres: np.ndarray,
     """
     centres = np.asarray(centres, dtype=float)
     counts = np.asarray(counts, dtype=float)
-    bases = []
-    for rule in rule_base.rules:
-        index = np.asarray(rule.consequent_areas) - 1
-        weight = counts[..., index]
-        total = weight.sum(axis=-1, keepdims=True)
-        with np.errstate(invalid='ignore', divide='ignore'):
-            bases.append(np.einsum('...k,...kj->...j', weight,
-                                   np.nan_to_num(centres[..., index, :])) / total)
-    return np.stack(bases, axis=-2)
+    finite_centres = np.nan_to_num(centres)
+    by_areas: dict[tuple[int, ...], np.ndarray] = {}
+    with np.errstate(invalid='ignore', divide='ignore'):
+        for areas in {rule.consequent_areas for rule in rule_base.rules}:
+            index = np.asarray(areas) - 1
+            weight = counts[..., index]
+            total = weight.sum(axis=-1, keepdims=True)
+            by_areas[areas] = np.einsum('...k,...kj->...j', weight,
+                                        finite_centres[..., index, :]) / total
+    return np.stack([by_areas[rule.consequent_areas] for rule in rule_base.rules], axis=-2)
 
 
 @dataclass(frozen=True)

@@ -214,8 +214,11 @@ class BestPointChooser:
             horizontal = areas.centre
             height_offset = 0.0
         elif self.selector == 'max_score':
-            best = int(np.lexsort(np.column_stack([area.xyz_world, -area.score]).T)[0])
-            horizontal = area.xyz_world[best]
+            best = np.flatnonzero(area.score == area.score.max())
+            if len(best) > 1:  # ties: the smallest (x, y, z), so input order cannot matter
+                world = area.xyz_world[best]
+                best = best[np.lexsort((world[:, 2], world[:, 1], world[:, 0]))]
+            horizontal = area.xyz_world[best[0]]
             height_offset = 0.0
         else:
             if not areas.ok:
