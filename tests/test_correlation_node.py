@@ -1,0 +1,221 @@
+"""correlation_node in-process with real rclpy: matches, bad pairs dropped, parameters.
+
+Each test has a ROS context and domain of its own (ros_context) and waits on graph conditions
+and messages, never on fixed sleeps.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from ros_waiting import wait_until
+
+pytestmark = pytest.mark.ros
+
+WIDTH, HEIGHT = 160, 120
+FOCAL, BASELINE = 200.0, 0.1  # [px], [m]
+SHIFT = 8  # [px] disparity of the synthetic pair
+TIMEOUT = 60.0  # [s] generous: DDS discovery, and a numba compile when its cache is cold
+
+
+def camera(width: int = WIDTH, height: int = HEIGHT, tx: float = -FOCAL * BASELINE,
+           k_zero: bool = False):
+    from stereo_fuzzy_perception.camera_model import CameraCalibration
+
+    K = np.array([[FOCAL, 0.0, width / 2], [0.0, FOCAL, height / 2], [0.0, 0.0, 1.0]])
+    P = np.hstack([K, [[tx], [0.0], [0.0]]])
+    return CameraCalibration(width=width, height=height, K=np.zeros((3, 3)) if k_zero else K,
+                             D=np.zeros(5), P=P, frame_id='left_camera_optical_frame')
+
+
+def textured_pair(width: int = WIDTH, height: int = HEIGHT) -> tuple[np.ndarray, np.ndarray]:
+    """A rectified pair with a constant disparity SHIFT: left x matches right x - SHIFT."""
+    rng = np.random.default_rng(0)
+    scene = cv2.GaussianBlur(rng.uniform(0, 255, (height, width + SHIFT)).astype(np.float32),
+                             (0, 0), 1.2)
+    scene = np.clip(128 + 3 * (scene - scene.mean()), 0, 255).astype(np.uint8)
+    return scene[:, :width].copy(), scene[:, SHIFT:SHIFT + width].copy()
+
+
+def stereo_pair(stamp_sec: int = 1, encoding: str = 'mono8', right_width: int = WIDTH,
+                left_k_zero: bool = False, right_tx: float = -FOCAL * BASELINE):
+    from sensor_msgs.msg import Image
+    from std_msgs.msg import Header
+    from stereo_fuzzy_perception.conversions import array_to_image, calibration_to_camera_info
+
+    from stereo_fuzzy_msgs.msg import StereoPair
+
+    header = Header(frame_id='left_camera_optical_frame')
+    header.stamp.sec = stamp_sec
+    left, right = textured_pair()
+    if right_width != WIDTH:
+        right = textured_pair(width=right_width)[1]
+    pair = StereoPair(header=header)
+    if encoding == 'yuv422':
+        pair.left_image = Image(header=header, width=WIDTH, height=HEIGHT, encoding=encoding,
+                                step=2 * WIDTH, data=bytes(2 * WIDTH * HEIGHT))
+        pair.right_image = pair.left_image
+    else:
+        pair.left_image = array_to_image(left, encoding, header)
+        pair.right_image = array_to_image(right, encoding, header)
+    pair.left_info = calibration_to_camera_info(camera(k_zero=left_k_zero, tx=0.0), header)
+    pair.right_info = calibration_to_camera_info(camera(width=right_width, tx=right_tx), header)
+    return pair
+
+
+class Harness:
+    """The node under test plus a probe node that publishes pairs and collects outputs."""
+
+    def __init__(self, context, **overrides):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.parameter import Parameter
+        from stereo_fuzzy_perception.correlation_node import CorrelationNode
+
+        from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
+        from stereo_fuzzy_perception import qos
+
+        parameters = [Parameter(name, value=value) for name, value in overrides.items()]
+        self.node = CorrelationNode(context=context, parameter_overrides=parameters)
+        self.probe = __import__('rclpy').create_node('correlation_probe', context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.probe)
+        self.matches: list = []
+        self.diagnostics: list = []
+        self.publisher = self.probe.create_publisher(StereoPair, 'stereo/pair', qos.RESULTS)
+        self.probe.create_subscription(StereoMatches, 'stereo/matches', self.matches.append,
+                                       qos.RESULTS)
+        self.probe.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics.append,
+                                       qos.DIAGNOSTICS)
+        wait_until(lambda: self.publisher.get_subscription_count() > 0
+                   and self.node.matches_publisher.get_subscription_count() > 0,
+                   TIMEOUT, 'the probe and the node to discover each other', self.executor)
+
+    def publish_and_wait_processed(self, pair) -> None:
+        before = self.node.processed + sum(self.node.dropped.values())
+        self.publisher.publish(pair)
+        wait_until(lambda: self.node.processed + sum(self.node.dropped.values()) > before,
+                   TIMEOUT, 'the node to process or drop the pair', self.executor)
+
+    def latest_values(self) -> dict[str, str]:
+        status = self.diagnostics[-1].status[0]
+        return {item.key: item.value for item in status.values}
+
+    def close(self) -> None:
+        self.node.destroy_node()
+        self.probe.destroy_node()
+        self.executor.shutdown()
+
+
+@pytest.fixture
+def harness(ros_context):
+    created = []
+
+    def make(**overrides):
+        created.append(Harness(ros_context, **overrides))
+        return created[-1]
+
+    yield make
+    for item in created:
+        item.close()
+
+
+def test_known_shift_gives_points_at_f_b_over_d(harness):
+    from stereo_fuzzy_perception.conversions import cloud_to_matched_points
+
+    rig = harness(window_size=9, disparity_range=32)
+    rig.publish_and_wait_processed(stereo_pair(stamp_sec=7))
+    wait_until(lambda: rig.matches, TIMEOUT, 'a StereoMatches message', rig.executor)
+    message = rig.matches[-1]
+    assert message.header.stamp.sec == 7
+    assert message.header.frame_id == 'left_camera_optical_frame'
+    assert (message.method, message.window_size, message.disparity_range) == ('zncc', 9, 32)
+    assert list(message.left_info.d) == [0.0] * 5
+    assert message.right_info.p[3] == pytest.approx(-FOCAL * BASELINE)
+    points = cloud_to_matched_points(message.points)
+    assert len(points) > 0.8 * HEIGHT * (WIDTH - SHIFT - 2 * 4)
+    depth = FOCAL * BASELINE / SHIFT
+    assert np.median(points.xyz[:, 2]) == pytest.approx(depth, rel=1e-3)
+    assert np.mean(np.abs(points.xyz[:, 2] - depth) < 0.02 * depth) > 0.98
+    expected_x = (points.u_left - WIDTH / 2) * points.xyz[:, 2] / FOCAL
+    assert np.allclose(points.xyz[:, 0], expected_x, atol=1e-4)
+    assert np.mean(np.abs(points.u_left - points.u_right - SHIFT) < 0.5) > 0.98
+
+
+@pytest.mark.parametrize(('bad', 'reason', 'words'), [
+    ({'left_k_zero': True}, 'calibration', 'not calibrated'),
+    ({'right_tx': 5.0}, 'calibration', 'must be negative'),
+    ({'right_width': WIDTH - 16}, 'calibration', 'calibration is'),
+    ({'encoding': 'yuv422'}, 'encoding', 'yuv422'),
+], ids=['uncalibrated', 'right-tx-positive', 'size-mismatch', 'unsupported-encoding'])
+def test_bad_pair_is_dropped_reported_and_a_good_pair_still_matches(harness, bad, reason, words):
+    rig = harness(window_size=7, disparity_range=16)
+    rig.publish_and_wait_processed(stereo_pair(**bad))
+    assert rig.node.dropped[reason] == 1
+    assert rig.node.processed == 0
+    assert words in rig.node.last_error
+    wait_until(lambda: rig.diagnostics and rig.latest_values()[f'dropped {reason}'] == '1',
+               TIMEOUT, f'/diagnostics reporting the {reason} drop', rig.executor)
+    assert rig.diagnostics[-1].status[0].level == rig.diagnostics[-1].status[0].WARN
+    assert words in rig.diagnostics[-1].status[0].message
+
+    rig.publish_and_wait_processed(stereo_pair(stamp_sec=2))
+    wait_until(lambda: rig.matches, TIMEOUT, 'matches of the good pair', rig.executor)
+    assert rig.node.processed == 1
+    assert rig.matches[-1].header.stamp.sec == 2
+
+
+def test_size_mismatch_between_images_and_their_calibration_is_named(harness):
+    from stereo_fuzzy_perception.conversions import array_to_image
+
+    rig = harness()
+    pair = stereo_pair()
+    left, _ = textured_pair(width=WIDTH - 20)
+    pair.left_image = array_to_image(left, 'mono8', pair.header)  # info still says WIDTH
+    rig.publish_and_wait_processed(pair)
+    assert rig.node.dropped['size_mismatch'] == 1, rig.node.last_error
+    assert f'{WIDTH - 20}x{HEIGHT}' in rig.node.last_error
+
+
+def test_matcher_parameters_change_at_run_time_and_invalid_values_are_refused(harness):
+    from rclpy.parameter import Parameter
+
+    rig = harness()
+    refused = rig.node.set_parameters([Parameter('window_size', value=8)])[0]
+    assert not refused.successful
+    assert 'odd' in refused.reason
+    assert rig.node.pipeline.config.window_size == 9
+    refused = rig.node.set_parameters([Parameter('preprocess', value='sobel')])[0]
+    assert not refused.successful and 'preprocess' in refused.reason
+
+    accepted = rig.node.set_parameters([Parameter('window_size', value=11),
+                                        Parameter('method', value='plain')])[0]
+    assert accepted.successful, accepted.reason
+    assert rig.node.pipeline.config.window_size == 11
+    rig.publish_and_wait_processed(stereo_pair())
+    wait_until(lambda: rig.matches, TIMEOUT, 'matches with the new settings', rig.executor)
+    assert (rig.matches[-1].method, rig.matches[-1].window_size) == ('plain', 11)
+
+
+def test_disparity_image_is_published_to_a_subscriber(harness):
+    from stereo_msgs.msg import DisparityImage
+
+    from stereo_fuzzy_perception import qos
+
+    rig = harness(disparity_range=32)
+    images: list = []
+    rig.probe.create_subscription(DisparityImage, 'stereo/disparity', images.append,
+                                  qos.RESULTS)
+    wait_until(lambda: rig.node.disparity_publisher.get_subscription_count() > 0, TIMEOUT,
+               'the node to see the disparity subscriber', rig.executor)
+    rig.publish_and_wait_processed(stereo_pair())
+    wait_until(lambda: images, TIMEOUT, 'a DisparityImage', rig.executor)
+    message = images[-1]
+    assert (message.f, message.t) == (pytest.approx(FOCAL), pytest.approx(BASELINE))
+    assert (message.min_disparity, message.max_disparity) == (0.0, 31.0)
+    data = np.frombuffer(bytes(message.image.data), np.float32).reshape(HEIGHT, WIDTH)
+    valid = data >= message.min_disparity
+    assert valid.mean() > 0.7
+    assert np.median(data[valid]) == pytest.approx(SHIFT, abs=0.05)
