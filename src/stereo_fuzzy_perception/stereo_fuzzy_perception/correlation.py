@@ -115,7 +115,7 @@ class MatcherConfig:
     min_disparity: int = 0
     disparity_range: int = 64
     min_score: float = 0.3
-    texture_threshold: float = 2.0
+    texture_threshold: float = 0.5
     uniqueness_ratio: float = 0.0
     lr_check_max_diff: int = 1
     subpixel: bool = True
