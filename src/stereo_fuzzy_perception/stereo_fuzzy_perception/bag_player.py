@@ -98,6 +98,7 @@ class BagPlayer:
             self.clock_publisher = node.create_publisher(
                 Clock, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
         self.published = 0
+        self._last_clock_ns = -1
 
     def published_topics(self) -> dict[str, str]:
         """Return {recorded topic: topic it is published on}."""
@@ -114,7 +115,9 @@ class BagPlayer:
             time.sleep(0.02)
 
     def _publish_clock(self, bag_time_ns: int) -> None:
-        if self.clock_publisher is not None:
+        """Publish bag time on /clock, never going backwards."""
+        if self.clock_publisher is not None and bag_time_ns > self._last_clock_ns:
+            self._last_clock_ns = bag_time_ns
             message = Clock()
             message.clock.sec, message.clock.nanosec = divmod(int(bag_time_ns), 1_000_000_000)
             self.clock_publisher.publish(message)
@@ -125,10 +128,13 @@ class BagPlayer:
         offset_ns = round(options.start_offset_s * 1e9)
         first_ns = self.info.start_ns + offset_ns
         clock_period = 1.0 / options.clock_hz if options.clock_hz > 0.0 else None
-        started = time.monotonic()
-        next_clock = started
+        self._last_clock_ns = -1
+        started: float | None = None
+        next_clock = 0.0
         count = 0
         for message in read_messages(options.bag, self.topics, start_offset_ns=offset_ns):
+            if started is None:  # bag time first_ns is now (opening the bag took a while)
+                started = next_clock = time.monotonic()
             due = started + playback_delay_s(message.timestamp_ns, first_ns, options.rate)
             while True:
                 now = time.monotonic()

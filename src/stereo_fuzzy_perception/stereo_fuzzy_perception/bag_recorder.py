@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from rclpy.executors import Executor
+from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 
@@ -125,9 +125,21 @@ class BagRecorder:
                     self.discover()
                     next_discovery = now + options.discovery_period_s
                 executor.spin_once(timeout_sec=min(0.05, options.discovery_period_s))
+            self._drain(executor)
         finally:
             self.close()
         return self.message_count
+
+    def _drain(self, executor: Executor) -> None:
+        """Handle messages that arrived (and were acknowledged) but are not written yet."""
+        while not self.done():
+            before = self.message_count
+            try:
+                executor.spin_once(timeout_sec=0.05)
+            except ExternalShutdownException:
+                return
+            if self.message_count == before:
+                return
 
     def close(self) -> None:
         """Stop receiving and finish the bag (safe to call twice)."""

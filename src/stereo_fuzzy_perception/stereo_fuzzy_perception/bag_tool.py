@@ -11,7 +11,9 @@ ROS arguments (`--ros-args ...`) go to rclpy, e.g. `--ros-args -r __node:=player
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -68,17 +70,23 @@ def _run_info(args: argparse.Namespace) -> int:
 def _run_with_node(args: argparse.Namespace, ros_args: list[str]) -> int:
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
 
     from .bag_player import BagPlayer, PlayOptions, topic_selection
     from .bag_recorder import BagRecorder, RecordOptions
 
-    rclpy.init(args=ros_args)
+    # Ctrl-C and SIGTERM only ask to stop: the player stops between messages, the recorder
+    # handles what has already arrived and closes the bag, then the context shuts down.
+    interrupted = threading.Event()
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda *_: interrupted.set())
+    rclpy.init(args=ros_args, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('bag_player' if args.command == 'play' else 'bag_recorder')
     executor = SingleThreadedExecutor()
     executor.add_node(node)
 
     def stopped() -> bool:
-        return not rclpy.ok()
+        return interrupted.is_set() or not rclpy.ok()
 
     try:
         if args.command == 'play':
@@ -98,10 +106,7 @@ def _run_with_node(args: argparse.Namespace, ros_args: list[str]) -> int:
                 output=args.output, topics=tuple(args.topics), all_topics=args.all,
                 max_messages=args.max_messages, duration_s=args.duration,
                 compression=args.compression))
-            try:
-                count = recorder.run(executor, stopped)
-            except (KeyboardInterrupt, ExternalShutdownException):
-                count = recorder.message_count
+            count = recorder.run(executor, stopped)
             print(f'recorded {count} messages into {args.output}')
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -81,12 +81,15 @@ def _stamp(time_ns: int) -> Time:
 
 
 def canonical_cdr(data: bytes, msgtype: str, typestore: Typestore) -> bytes:
-    """Return `data` re-serialized with zeroed alignment padding.
+    """Return `data` re-serialized with zeroed alignment padding, padded to 4 bytes.
 
     rclpy's serializer leaves whatever was in memory in the padding bytes between fields, so two
-    runs would write different bytes for the same messages; rosbags writes zeros.
+    runs would write different bytes for the same messages; rosbags writes zeros. DDS delivers
+    payloads zero-padded to a multiple of 4 bytes, so padding here too makes a played and
+    re-recorded bag byte-identical to the original.
     """
-    return bytes(typestore.serialize_cdr(typestore.deserialize_cdr(data, msgtype), msgtype))
+    canonical = bytes(typestore.serialize_cdr(typestore.deserialize_cdr(data, msgtype), msgtype))
+    return canonical + bytes(-len(canonical) % 4)
 
 
 def frame_messages(frame: StereoFrame, stamp_ns: int) -> list[tuple[str, bytes]]:
