@@ -336,24 +336,23 @@ def _update_column(column_sums, column, left_padded, right_reversed, y, first_ro
     if low > high:
         return
     count = numba.uint64(high - low + 1)
-    start = numba.uint64(width - 1 - column + min_disparity + low)
-    sums = column_sums[column, low:]
+    start = width - 1 - column + min_disparity + low
+    sums = column_sums[column, low:high + 1]
     if first_row:
         for lane in range(numba.uint64(0), count):
             sums[lane] = 0.0
         for row in range(y, y + 2 * radius + 1):
             value = left_padded[row, column]
-            right_row = right_reversed[row]
+            right_part = right_reversed[row, start:start + count]
             for lane in range(numba.uint64(0), count):
-                sums[lane] += value * right_row[start + lane]
+                sums[lane] += value * right_part[lane]
     else:
         new_value = left_padded[y + 2 * radius, column]
         old_value = left_padded[y - 1, column]
-        new_row = right_reversed[y + 2 * radius]
-        old_row = right_reversed[y - 1]
+        new_part = right_reversed[y + 2 * radius, start:start + count]
+        old_part = right_reversed[y - 1, start:start + count]
         for lane in range(numba.uint64(0), count):
-            sums[lane] += (new_value * new_row[start + lane]
-                           - old_value * old_row[start + lane])
+            sums[lane] += new_value * new_part[lane] - old_value * old_part[lane]
 
 
 @numba.njit(cache=True, fastmath=True, nogil=True)
@@ -428,20 +427,27 @@ def _correlate(left_padded, right_reversed, left_scale, left_offset, right_mean_
                     old_row = right_reversed[y - 1]
                     start = u64(width - 1 - newest + min_disparity)
                     base = u64(width - 1 - x + min_disparity)
+                    # Slices starting at the first lane: LLVM then sees plain unit-stride
+                    # accesses (about 25 % faster than indexing with start + lane).
+                    new_part = new_row[start:start + full]
+                    old_part = old_row[start:start + full]
+                    mean_part = means[base:base + full]
+                    scale_part = scales[base:base + full]
+                    best_part = best[base:base + full]
                     for lane in range(u64(0), full):
-                        column_total = added[lane] + (new_value * new_row[start + lane]
-                                                      - old_value * old_row[start + lane])
+                        column_total = added[lane] + (new_value * new_part[lane]
+                                                      - old_value * old_part[lane])
                         added[lane] = column_total
                         window_sums[lane] += column_total - removed[lane]
                     for lane in range(u64(0), full):
-                        score = np.int32((window_sums[lane] * scale - offset * means[base + lane])
-                                         * scales[base + lane])
+                        score = np.int32((window_sums[lane] * scale - offset * mean_part[lane])
+                                         * scale_part[lane])
                         scores[lane] = score
                         peak = score if score > peak else peak
                     for lane in range(u64(0), full):
                         score = scores[lane]
-                        previous = best[base + lane]
-                        best[base + lane] = score if score > previous else previous
+                        previous = best_part[lane]
+                        best_part[lane] = score if score > previous else previous
                     best_score[x] = peak
                     continue
                 if not first_row:
@@ -462,14 +468,20 @@ def _correlate(left_padded, right_reversed, left_scale, left_offset, right_mean_
                 for index in range(disparity_range):
                     scores[index] = none
                 if low <= high:
-                    base = u64(width - 1 - x + min_disparity)
-                    for lane in range(u64(low), u64(high + 1)):
-                        score = np.int32((window_sums[lane] * scale - offset * means[base + lane])
-                                         * scales[base + lane])
-                        scores[lane] = score
+                    base = width - 1 - x + min_disparity + low
+                    count = u64(high - low + 1)
+                    sums_part = window_sums[low:high + 1]
+                    scores_part = scores[low:high + 1]
+                    mean_part = means[base:base + count]
+                    scale_part = scales[base:base + count]
+                    best_part = best[base:base + count]
+                    for lane in range(u64(0), count):
+                        score = np.int32((sums_part[lane] * scale - offset * mean_part[lane])
+                                         * scale_part[lane])
+                        scores_part[lane] = score
                         peak = score if score > peak else peak
-                        previous = best[base + lane]
-                        best[base + lane] = score if score > previous else previous
+                        previous = best_part[lane]
+                        best_part[lane] = score if score > previous else previous
                 best_score[x] = peak
             for x in range(out_x_begin, out_x_end):
                 peak = best_score[x]
