@@ -15,6 +15,10 @@ python_bin=${PYTHON:-python3.11}
 
 say() { printf '[setup] %s\n' "$*"; }
 
+# One set-up at a time: two runs building the same workspace at once break each other.
+exec 9>"$root/.setup.lock"
+flock 9
+
 digest_of() { sha256sum "$@" | sha256sum | cut -d' ' -f1; }
 
 # --- 1. virtual environment ------------------------------------------------------------------
