@@ -11,7 +11,8 @@ the fuzzy stage: MatchedPoints in the left camera's optical frame, with the rect
 and the ground truth (the centre of the object's top face in `world`).
 
 A scene source is anything with `scene(rng) -> SyntheticScene`; `SCENE_SOURCES` names them so the
-training scripts can take `--source`. The rendered-scene simulator plugs in there when it exists.
+training scripts can take `--source`: `geometric` (this module) and `rendered` (pybullet images
+through the real correlation stage, rendered_scenes.py, imported only when asked for).
 """
 
 from __future__ import annotations
@@ -185,7 +186,7 @@ class SyntheticScene:
 
 
 class SceneSource(Protocol):
-    """Anything that makes scenes: the geometric source now, rendered scenes later."""
+    """Anything that makes scenes: GeometricSceneSource, RenderedSceneSource."""
 
     def scene(self, rng: np.random.Generator, object_type: str | None = None
               ) -> SyntheticScene:
@@ -354,8 +355,14 @@ class GeometricSceneSource:
             yield self.scene(rng, object_type)
 
 
+def rendered_scene_source() -> SceneSource:
+    """Return a RenderedSceneSource (imports pybullet and the correlation stage on first use)."""
+    from .rendered_scenes import RenderedSceneSource
+    return RenderedSceneSource()
+
+
 SCENE_SOURCES: dict[str, Callable[[], SceneSource]] = {
     'geometric': GeometricSceneSource,
+    'rendered': rendered_scene_source,
 }
-"""Scene sources by name, for `--source` of the training and benchmark scripts. The rendered
-(pybullet) simulator registers here when it is ready."""
+"""Scene sources by name, for `--source` of the training and benchmark scripts."""

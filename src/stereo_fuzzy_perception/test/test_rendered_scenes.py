@@ -1,0 +1,46 @@
+"""The rendered scene source: pybullet images through the correlation stage, as a scene record."""
+
+import numpy as np
+import pytest
+from stereo_fuzzy_perception.correlation_area import AreaConfig
+from stereo_fuzzy_perception.point_selectors import BestPointChooser
+from stereo_fuzzy_perception.rendered_scenes import RenderedSceneSource
+from stereo_fuzzy_perception.rig_geometry import transform_points
+from stereo_fuzzy_perception.synthetic_scenes import SCENE_SOURCES, SyntheticScene
+
+
+@pytest.fixture(scope='module')
+def scene():
+    with RenderedSceneSource() as source:
+        yield source.scene(np.random.default_rng(3), 'cubic_square')
+
+
+def test_rendered_source_is_registered():
+    source = SCENE_SOURCES['rendered']()
+    assert isinstance(source, RenderedSceneSource)
+
+
+def test_rendered_scene_is_a_valid_scene_record(scene):
+    assert isinstance(scene, SyntheticScene)
+    assert scene.object_type == 'cubic_square'
+    assert len(scene.points) > 1000 and scene.object_points > 100
+    assert scene.target_world[2] == pytest.approx(scene.prism.height)
+    np.testing.assert_allclose(scene.prism.top_centre(), scene.target_world, atol=1e-9)
+    # Points are in the left optical frame: the top face's points lie near the top height.
+    world = transform_points(scene.rig.world_from_left_camera(), scene.points.xyz)
+    on_top = scene.prism.contains_xy(world[:, :2]) & (world[:, 2] > 0.5 * scene.prism.height)
+    median_top = np.median(world[on_top, 2])
+    assert median_top == pytest.approx(scene.prism.height, abs=0.003), (
+        f'top points at {median_top:.4f} m, object {scene.prism.height:.4f} m high')
+    # The rectified calibration reprojects the points to their left image coordinates.
+    rectified = scene.points.xyz @ scene.left.R.T
+    left = np.column_stack([rectified, np.ones(len(rectified))]) @ scene.left.P.T
+    np.testing.assert_allclose(left[:, 0] / left[:, 2], scene.points.u_left, atol=1e-3)
+
+
+def test_the_centroid_selector_finds_the_rendered_top(scene):
+    chooser = BestPointChooser.create('centroid', AreaConfig(), scene.rig)
+    decision = chooser.decide(scene.points, scene.left, scene.right)
+    assert decision.has_best_point, decision.status_text()
+    error_mm = 1000.0 * np.linalg.norm(decision.best_point_world - scene.target_world)
+    assert error_mm < 10.0, f'centroid {error_mm:.1f} mm from the top-face centre'
