@@ -68,6 +68,7 @@ class DemoRun:
         self.rate = rate
         self.timeout_s = timeout_s
         self.quiet = quiet
+        self.settle_timeout_s = 60.0
         self.params = yaml.safe_load(params_file.read_text())
         self.group = ProcessGroup(output_dir / 'logs')
         self.gantry_link = Path(tempfile.mkdtemp(prefix='stereo_fuzzy_gantry_')) / 'tty'
@@ -107,7 +108,7 @@ class DemoRun:
         """Play the demo bag once every topic it publishes has a subscriber."""
         self.group.start('bag_play', [executable_path('stereo_fuzzy_perception', 'bag'), 'play',
                                       self.bag, '--wait-for-subscribers',
-                                      '--rate', str(self.rate)])
+                                      '--rate', str(self.rate)], one_shot=True)
 
     # --- the run -----------------------------------------------------------------------------
 
@@ -133,9 +134,11 @@ class DemoRun:
         try:
             self._progress('starting the simulated gantry and the nodes')
             self.start_chain()
+            # A controller with homing enabled boots in Alarm; the driver reports its state
+            # (connected stays false until the preamble is acknowledged after homing).
             wait_for(lambda: monitor.latest_gantry_state is not None
-                     and monitor.latest_gantry_state.connected, 60.0,
-                     'the driver to connect to the simulated gantry', spin, self.group)
+                     and monitor.latest_gantry_state.state != 'Disconnected', 60.0,
+                     'the driver to reach the simulated gantry', spin, self.group)
             self._progress('homing the gantry')
             home = node.create_client(Trigger, 'gantry/home')
             wait_for(home.service_is_ready, 30.0, 'the gantry/home service', spin, self.group)
@@ -160,14 +163,18 @@ class DemoRun:
                 raise RuntimeError(f'bag play failed:\n{player.output()[-3000:]}')
             expected = [record for record in monitor.scenes.values()
                         if record.ground_truth is not None]
-            wait_for(lambda: self._all_settled(monitor, expected), 120.0,
-                     'the gantry to finish the last moves', spin, self.group)
+            try:
+                wait_for(lambda: self._all_settled(monitor, expected), self.settle_timeout_s,
+                         'the last decisions and moves', spin, self.group)
+            except TimeoutError as error:
+                # What did not finish shows up as a failed object in the table.
+                self._progress(str(error))
         finally:
             exit_codes = self.group.stop_all()
             node.destroy_node()
             executor.shutdown()
             context.try_shutdown()
-        if not self.quiet:
+        if not self.quiet and sys.stderr.isatty():
             print(file=sys.stderr)
         self.exit_codes = exit_codes
         return self._verdicts(monitor)
@@ -207,13 +214,15 @@ class DemoRun:
                  lines_before: int) -> tuple[ObjectResult, int]:
         truth = record.ground_truth
         if record.best_point is None:
-            reason = record.decision.status if record.decision is not None else 'no decision'
+            reason = (record.decision.status if record.decision is not None
+                      else 'no decision (pair dropped, see the logs)')
             return ObjectResult(index, record.stamp_ns, truth.tolist(), None, None, None, None,
                                 None, None, [], f'no best point: {reason}', False), lines_before
         error = record.best_point - truth
         commanded = self._commanded(record.best_point)
         reached = monitor.idle_at(commanded, 0.0005, record.gantry_index_at_best_point)
-        lines = [] if reached is None else sent[lines_before:reached.lines_sent]
+        lines, lines_after = ([], lines_before) if reached is None else self._move_lines(
+            commanded, sent, lines_before)
         error_mm = float(np.linalg.norm(error) * 1000)
         passed = error_mm <= self.tolerance_mm and reached is not None
         if reached is None:
@@ -227,13 +236,35 @@ class DemoRun:
             float(np.linalg.norm(error[:2]) * 1000), float(abs(error[2]) * 1000),
             commanded.tolist(), None if reached is None else reached.world_position.tolist(),
             lines, status, passed)
-        return result, lines_before if reached is None else reached.lines_sent
+        return result, lines_after
+
+    def _move_lines(self, commanded: np.ndarray, sent: list[str],
+                    start: int) -> tuple[list[str], int]:
+        """Return the lines of the move that ends at `commanded`, from `start` on in the sent
+        log, and the index after them. Every approach ends with the line that brings Z to the
+        goal height, so the move is everything up to the first such line."""
+        driver = self.params.get('gantry_driver_node', {}).get('ros__parameters', {})
+        offset = np.array(driver.get('machine_offset_mm', [0.0, 0.0, 0.0]), dtype=float)
+        scale = np.array(driver.get('axis_scale_mm_per_m', [1000.0, 1000.0, 1000.0]),
+                         dtype=float)
+        goal_z_mm = float(offset[2] + scale[2] * commanded[2])
+        for index in range(start, len(sent)):
+            words = {word[0]: word[1:] for word in sent[index].split() if word[:1] in 'XYZ'}
+            if 'Z' in words and abs(float(words['Z']) - goal_z_mm) <= 0.0015:
+                return sent[start:index + 1], index + 1
+        return sent[start:], len(sent)
 
     # --- progress ----------------------------------------------------------------------------
 
     def _progress(self, text: str) -> None:
-        if not self.quiet:
+        """Show a progress line: rewritten in place on a terminal, one line per change in a log."""
+        if self.quiet or text == getattr(self, '_last_progress', None):
+            return
+        self._last_progress = text
+        if sys.stderr.isatty():
             print(f'\r\033[K[demo] {text}', end='', file=sys.stderr, flush=True)
+        else:
+            print(f'[demo] {text}', file=sys.stderr, flush=True)
 
     def _progress_scenes(self, monitor: object) -> None:
         seen = sum(1 for record in monitor.scenes.values() if record.ground_truth is not None)
@@ -270,7 +301,8 @@ def main(argv: list[str] | None = None) -> int:
                         help='folder for pictures, logs, the outputs bag and results.json')
     parser.add_argument('--tolerance-mm', type=float, default=3.0,
                         help='largest best-point error that passes [mm]')
-    parser.add_argument('--rate', type=float, default=1.0, help='bag playback rate')
+    parser.add_argument('--rate', type=float, default=0.5,
+                        help='bag playback rate (the bags hold a scene a second)')
     parser.add_argument('--timeout', type=float, default=600.0,
                         help='longest time the bag may take to play [s]')
     arguments = parser.parse_args(argv)

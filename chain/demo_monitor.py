@@ -13,6 +13,7 @@ import numpy as np
 from geometry_msgs.msg import PointStamped
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from visualization_msgs.msg import Marker
 
 from stereo_fuzzy_msgs.msg import FuzzyDecision, GantryState, StereoMatches, StereoPair
 
@@ -43,6 +44,7 @@ class SceneRecord:
     matches: StereoMatches | None = None
     best_point_order: int = -1
     gantry_index_at_best_point: int = 0
+    object_marker: Marker | None = None
 
 
 @dataclass
@@ -67,6 +69,7 @@ class DemoMonitor:
         self.latest_gantry_state: GantryState | None = None
         node.create_subscription(PointStamped, 'ground_truth/target', self._on_ground_truth,
                                  RELIABLE)
+        node.create_subscription(Marker, 'ground_truth/object', self._on_object, RELIABLE)
         node.create_subscription(PointStamped, 'best_point', self._on_best_point, RELIABLE)
         node.create_subscription(FuzzyDecision, 'best_point/decision', self._on_decision,
                                  RELIABLE)
@@ -83,6 +86,9 @@ class DemoMonitor:
 
     def _on_ground_truth(self, msg: PointStamped) -> None:
         self.scene(stamp_key(msg.header)).ground_truth = as_array(msg.point)
+
+    def _on_object(self, msg: Marker) -> None:
+        self.scene(stamp_key(msg.header)).object_marker = msg
 
     def _on_best_point(self, msg: PointStamped) -> None:
         record = self.scene(stamp_key(msg.header))

@@ -34,6 +34,7 @@ class ManagedProcess:
     name: str
     process: subprocess.Popen[bytes]
     log_path: Path
+    one_shot: bool = False  # expected to finish by itself (a bag player), not a failure
 
     def output(self) -> str:
         """Return what the process printed so far."""
@@ -67,15 +68,19 @@ class ProcessGroup:
     env: dict[str, str] = field(default_factory=lambda: dict(os.environ))
     processes: list[ManagedProcess] = field(default_factory=list)
 
-    def start(self, name: str, command: Sequence[str | Path]) -> ManagedProcess:
-        """Start `command`, its output going to `<log_dir>/<name>.log`."""
+    def start(self, name: str, command: Sequence[str | Path],
+              one_shot: bool = False) -> ManagedProcess:
+        """Start `command`, its output going to `<log_dir>/<name>.log`.
+
+        A `one_shot` process is expected to exit by itself; its exit is not a failure.
+        """
         self.log_dir.mkdir(parents=True, exist_ok=True)
         log_path = self.log_dir / f'{name}.log'
         env = dict(self.env, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0')
         with open(log_path, 'wb') as log:
             process = subprocess.Popen([str(part) for part in command], stdout=log,
                                        stderr=subprocess.STDOUT, env=env)
-        managed = ManagedProcess(name, process, log_path)
+        managed = ManagedProcess(name, process, log_path, one_shot)
         self.processes.append(managed)
         return managed
 
@@ -88,8 +93,9 @@ class ProcessGroup:
         return self.start(name or executable, [path, '--ros-args', *ros_arguments])
 
     def exited(self) -> list[ManagedProcess]:
-        """Return the processes that have already exited."""
-        return [process for process in self.processes if not process.running()]
+        """Return the long-running processes that have already exited."""
+        return [process for process in self.processes
+                if not process.one_shot and not process.running()]
 
     def stop_all(self) -> dict[str, int]:
         """Stop every process, newest first; return their exit codes by name."""

@@ -99,6 +99,10 @@ class CorrelationNode(Node):
             self.received += 1
             if self._pending is not None:
                 self.dropped['superseded'] += 1
+                self.get_logger().warning(
+                    'dropped a pair that waited while the previous one was matched '
+                    f"({self.dropped['superseded']} so far): input faster than matching",
+                    throttle_duration_sec=5.0)
             self._pending = pair
             self._condition.notify()
 
