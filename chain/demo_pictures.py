@@ -1,9 +1,9 @@
 """Draw what the chain decided about one object onto the left camera image.
 
-Matched points (coloured by correlation score), the four border points of the correlation area,
-the split into four areas (Fig. 4 of the chapter) with their centres numbered 1-4, the best point
-and the ground truth. Points are projected with the raw left camera model (K, D) from the pair,
-so the picture shows the image exactly as the camera took it.
+A sample of the matched points (coloured by correlation score), the four border points of the
+correlation area (magenta), the split into four areas (Fig. 4 of the chapter) with their centres
+numbered 1-4, the best point (red) and the ground truth (white). Points are projected with the
+raw left camera model (K, D) from the pair, so the picture shows the image as the camera took it.
 """
 
 from __future__ import annotations
@@ -59,11 +59,15 @@ def draw_scene(record: object, params: dict, path: Path) -> bool:
         return _project(camera, calibration.K, calibration.D)
 
     if record.matches is not None:
+        # A sample of the matches, blended, so the image stays visible underneath.
         matches = cloud_to_matched_points(record.matches.points)
-        pixels = _project(matches.xyz, calibration.K, calibration.D)
-        for (u, v), score in zip(pixels, matches.score, strict=True):
+        step = max(1, len(matches) // 4000)
+        pixels = _project(matches.xyz[::step], calibration.K, calibration.D)
+        overlay = canvas.copy()
+        for (u, v), score in zip(pixels, matches.score[::step], strict=True):
             green = int(np.clip(score, 0.0, 1.0) * 255)
-            cv2.circle(canvas, (int(round(u)), int(round(v))), 1, (0, green, 255 - green), -1)
+            cv2.circle(overlay, (int(round(u)), int(round(v))), 1, (0, green, 255 - green), -1)
+        canvas = cv2.addWeighted(overlay, 0.45, canvas, 0.55, 0.0)
     decision = record.decision
     if decision is not None and decision.points_used > 0:
         border = to_pixels(np.array([[p.x, p.y, p.z] for p in decision.border_points]))
@@ -84,13 +88,14 @@ def draw_scene(record: object, params: dict, path: Path) -> bool:
                         0.45, (255, 255, 0), 1, cv2.LINE_AA)
     marks = []
     if record.ground_truth is not None:
-        marks.append((record.ground_truth, (0, 255, 0), cv2.MARKER_CROSS, 'ground truth'))
+        marks.append((record.ground_truth, (255, 255, 255), cv2.MARKER_CROSS, 'ground truth'))
     if record.best_point is not None:
         marks.append((record.best_point, (0, 0, 255), cv2.MARKER_TILTED_CROSS, 'best point'))
     for point, colour, marker, label in marks:
         (u, v), = to_pixels(point.reshape(1, 3))
         cv2.drawMarker(canvas, (int(round(u)), int(round(v))), colour, marker, 18, 2)
-        cv2.putText(canvas, label, (int(u) + 10, int(v) - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
+        below = 22 if label == 'ground truth' else -10
+        cv2.putText(canvas, label, (int(u) + 10, int(v) + below), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
                     colour, 1, cv2.LINE_AA)
     status = decision.status if decision is not None else 'no decision'
     cv2.putText(canvas, f'{decision.selector if decision else ""}: {status}', (8, 20),
