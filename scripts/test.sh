@@ -9,5 +9,7 @@ source "$root/scripts/env.sh"
 cd "$root"
 echo '[test] ruff check'
 ruff check .
+echo '[test] mypy'
+mypy
 echo '[test] pytest'
 python -m pytest "$@"

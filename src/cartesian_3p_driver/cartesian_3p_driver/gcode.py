@@ -254,7 +254,7 @@ def clamp_feed(feed_mm_min: float, start_mm: Vector3 | None, end_mm: Vector3,
 
 def _quantize_inside(value_mm: float, low_mm: float, high_mm: float) -> float:
     """Round to the sent resolution, pulling the result back inside [low, high] [mm]."""
-    scale = 10 ** COORDINATE_DECIMALS
+    scale: int = 10 ** COORDINATE_DECIMALS
     value = round(value_mm, COORDINATE_DECIMALS)
     low_q = math.ceil(round(low_mm * scale, 6)) / scale
     high_q = math.floor(round(high_mm * scale, 6)) / scale

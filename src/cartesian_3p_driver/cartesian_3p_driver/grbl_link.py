@@ -516,7 +516,9 @@ class GrblLink:
                 stop.deadline = time.monotonic() + self.config.stop_timeout_s
                 self._write(SOFT_RESET)
         job = self._active
-        if job is not None and job.plan is not None and world is not None:
+        # world is derived from machine: both are None or neither (narrowed for mypy).
+        if (job is not None and job.plan is not None and world is not None
+                and machine is not None):
             self._on_job_status(job, report, machine, world)
         self._emit_snapshot()
 

@@ -191,7 +191,8 @@ class DisparityMap:
     @property
     def valid(self) -> np.ndarray:
         """Return the (H, W) boolean mask of valid disparities."""
-        return self.status == MatchStatus.VALID
+        valid: np.ndarray = self.status == MatchStatus.VALID
+        return valid
 
     def status_counts(self) -> dict[str, int]:
         """Return how many pixels of the region of interest have each status, by name."""
@@ -225,12 +226,14 @@ def preprocess_image(image: np.ndarray, mode: str) -> np.ndarray:
             f'preprocess {mode!r} is not one of {", ".join(PREPROCESS_MODES)}')
     grey8 = _to_uint8(image)
     if mode == 'binary':
+        binary: np.ndarray
         _, binary = cv2.threshold(grey8, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
         return binary
     gx = cv2.Sobel(grey8, cv2.CV_32F, 1, 0, ksize=3)
     gy = cv2.Sobel(grey8, cv2.CV_32F, 0, 1, ksize=3)
     magnitude = cv2.magnitude(gx, gy) * np.float32(255.0 / (4.0 * 255.0))
-    return np.clip(np.rint(magnitude), 0, 255).astype(np.uint8)
+    edges: np.ndarray = np.clip(np.rint(magnitude), 0, 255).astype(np.uint8)
+    return edges
 
 
 def _to_uint8(image: np.ndarray) -> np.ndarray:
@@ -238,7 +241,8 @@ def _to_uint8(image: np.ndarray) -> np.ndarray:
         return image
     if image.dtype == np.uint16:
         return (image >> 8).astype(np.uint8)
-    return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+    clipped: np.ndarray = np.clip(np.rint(image), 0, 255).astype(np.uint8)
+    return clipped
 
 
 def _intensity_float32(image: np.ndarray, centre: bool) -> np.ndarray:
@@ -293,8 +297,10 @@ def effective_roi(config: MatcherConfig, width: int, height: int) -> tuple[int, 
 
 
 @numba.njit(cache=True, fastmath=True, nogil=True, parallel=True)
-def _window_statistics(sums, squares, count, zero_mean, texture_threshold, reverse,
-                       offset_out, mean_out, scale_out, texture_out):
+def _window_statistics(sums: np.ndarray, squares: np.ndarray, count: float, zero_mean: bool,
+                       texture_threshold: float, reverse: bool, offset_out: np.ndarray,
+                       mean_out: np.ndarray, scale_out: np.ndarray,
+                       texture_out: np.ndarray) -> None:
     """Turn window sums into the kernel's per-pixel terms (columns reversed when `reverse`).
 
     offset = count * mean * scale, mean = window mean (0 for Eq. 7), scale = 1 / sqrt(energy)
@@ -323,8 +329,9 @@ def _window_statistics(sums, squares, count, zero_mean, texture_threshold, rever
 
 
 @numba.njit(cache=True, fastmath=True, nogil=True)
-def _update_column(column_sums, column, left_padded, right_reversed, y, first_row, radius,
-                   min_disparity, disparity_range):
+def _update_column(column_sums: np.ndarray, column: int, left_padded: np.ndarray,
+                   right_reversed: np.ndarray, y: int, first_row: bool, radius: int,
+                   min_disparity: int, disparity_range: int) -> None:
     """Bring the cross-term sums of `column` to window rows y-r..y+r (padded rows y..y+2r).
 
     column_sums[column, i] = sum over the window rows of left[row, column] *
@@ -356,7 +363,8 @@ def _update_column(column_sums, column, left_padded, right_reversed, y, first_ro
 
 
 @numba.njit(cache=True, fastmath=True, nogil=True)
-def _candidate_range(x, width, radius, min_disparity, disparity_range):
+def _candidate_range(x: int, width: int, radius: int, min_disparity: int,
+                     disparity_range: int) -> tuple[int, int]:
     """Return (low, high) disparity indices whose right window lies inside the image."""
     low = max(0, x - min_disparity - (width - 1 - radius))
     high = min(disparity_range - 1, x - min_disparity - radius)
@@ -364,11 +372,14 @@ def _candidate_range(x, width, radius, min_disparity, disparity_range):
 
 
 @numba.njit(cache=True, fastmath=True, nogil=True, parallel=True)
-def _correlate(left_padded, right_reversed, left_scale, left_offset, right_mean_reversed,
-               right_scale_reversed, texture_ok, radius, min_disparity, disparity_range,
-               x_begin, x_end, y_begin, y_end, out_x_begin, out_x_end, min_score,
-               uniqueness_ratio, lr_max_diff, subpixel, band_count,
-               disparity_out, score_out, status_out):
+def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: np.ndarray,
+               left_offset: np.ndarray, right_mean_reversed: np.ndarray,
+               right_scale_reversed: np.ndarray, texture_ok: np.ndarray, radius: int,
+               min_disparity: int, disparity_range: int, x_begin: int, x_end: int,
+               y_begin: int, y_end: int, out_x_begin: int, out_x_end: int,
+               min_score: np.float32, uniqueness_ratio: np.float32, lr_max_diff: int,
+               subpixel: bool, band_count: int, disparity_out: np.ndarray,
+               score_out: np.ndarray, status_out: np.ndarray) -> None:
     """Match rows y_begin..y_end-1 over columns x_begin..x_end-1 (inside r..W-1-r).
 
     Decisions are written for columns out_x_begin..out_x_end-1. Disparity index i means
@@ -517,7 +528,8 @@ def _correlate(left_padded, right_reversed, left_scale, left_offset, right_mean_
                     near = none
                     for step in range(-lr_max_diff, lr_max_diff + 1):
                         neighbour = x + step
-                        index = chosen + step
+                        # An int32 + int index: numba unifies both to int64; mypy cannot.
+                        index = chosen + step  # type: ignore[assignment]
                         if x_begin <= neighbour < x_end and 0 <= index < disparity_range:
                             value = row_scores[neighbour, index]
                             near = value if value > near else near

@@ -31,7 +31,8 @@ def triangular_degree(x: np.ndarray | float, term: TriangularTerm) -> np.ndarray
         rising = np.ones_like(x) if term.a == term.b else (x - term.a) / (term.b - term.a)
         falling = np.ones_like(x) if term.b == term.c else (term.c - x) / (term.c - term.b)
         degree = np.where(x < term.b, rising, falling)
-    return np.nan_to_num(np.clip(degree, 0.0, 1.0), nan=0.0)
+    membership: np.ndarray = np.nan_to_num(np.clip(degree, 0.0, 1.0), nan=0.0)
+    return membership
 
 
 def membership_degrees(rule_base: RuleBase, ratios: np.ndarray) -> np.ndarray:

@@ -78,8 +78,9 @@ class StereoRig:
 
     def rig_rotation(self) -> np.ndarray:
         """Return world <- rig rotation (the optical frame of a camera with no vergence)."""
-        return (rotation_z(math.radians(self.theta_deg)) @ LOOKING_DOWN
-                @ rotation_x(math.radians(self.alpha_deg)))
+        rotation: np.ndarray = (rotation_z(math.radians(self.theta_deg)) @ LOOKING_DOWN
+                                @ rotation_x(math.radians(self.alpha_deg)))
+        return rotation
 
     def _camera_pose(self, side: float) -> np.ndarray:
         rig = self.rig_rotation()
@@ -105,4 +106,5 @@ class StereoRig:
 
 def transform_points(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Apply a 4x4 transform to (N, 3) points and return (N, 3)."""
-    return points @ pose[:3, :3].T + pose[:3, 3]
+    transformed: np.ndarray = points @ pose[:3, :3].T + pose[:3, 3]
+    return transformed

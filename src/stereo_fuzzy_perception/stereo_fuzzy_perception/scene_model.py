@@ -113,7 +113,7 @@ class SimulatedCamera:
         points = transform_points(camera_from_world, np.atleast_2d(points_world))
         pixels = (self.intrinsics() @ points.T).T
         with np.errstate(divide='ignore', invalid='ignore'):
-            uv = pixels[:, :2] / pixels[:, 2:3]
+            uv: np.ndarray = pixels[:, :2] / pixels[:, 2:3]
         uv[points[:, 2] <= self.near_m] = np.nan
         return uv
 

@@ -26,6 +26,7 @@ import math
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -157,7 +158,7 @@ def stereo_calibration(camera: SimulatedCamera, rig: StereoRig,
     R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(
         K, D, K, D, size, rotation, translation.reshape(3, 1),
         flags=cv2.CALIB_ZERO_DISPARITY, alpha=rectify_alpha)
-    common = {'width': camera.width, 'height': camera.height, 'K': K, 'D': D}
+    common: dict[str, Any] = {'width': camera.width, 'height': camera.height, 'K': K, 'D': D}
     return StereoCalibration(
         left=CameraCalibration(R=R1, P=P1, frame_id=LEFT_FRAME_ID, **common),
         right=CameraCalibration(R=R2, P=P2, frame_id=RIGHT_FRAME_ID, **common))
@@ -203,7 +204,8 @@ def _ring(scene_object: SceneObject, segments: int) -> tuple[np.ndarray, np.ndar
     return ring, np.zeros_like(ring)
 
 
-def object_mesh(scene_object: SceneObject, span_m: float, segments: int = 96) -> dict:
+def object_mesh(scene_object: SceneObject, span_m: float, segments: int = 96
+                ) -> dict[str, Any]:
     """Return pybullet GEOM_MESH arguments for the object (top and sides, in its own frame).
 
     Texture coordinates are in metres divided by `span_m`, so a texture spans `span_m`.
@@ -250,7 +252,7 @@ def object_mesh(scene_object: SceneObject, span_m: float, segments: int = 96) ->
     return {'vertices': vertices, 'indices': indices, 'uvs': uvs, 'normals': normals}
 
 
-def _surface_mesh(half_extent_m: float) -> dict:
+def _surface_mesh(half_extent_m: float) -> dict[str, Any]:
     h = half_extent_m
     return {'vertices': [[-h, -h, 0.0], [h, -h, 0.0], [h, h, 0.0], [-h, h, 0.0]],
             'indices': [0, 1, 2, 0, 2, 3],
@@ -360,15 +362,16 @@ class SceneRenderer:
     def _load_texture(self, name: str, image: np.ndarray) -> int:
         path = Path(self._texture_dir.name) / f'{name}.bmp'
         cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
-        return pybullet.loadTexture(str(path), physicsClientId=self._client)
+        texture: int = pybullet.loadTexture(str(path), physicsClientId=self._client)
+        return texture
 
-    def _add_mesh(self, mesh: dict, position: tuple[float, float, float],
+    def _add_mesh(self, mesh: dict[str, Any], position: tuple[float, float, float],
                   orientation: tuple[float, float, float, float], texture: int) -> int:
         shape = pybullet.createVisualShape(pybullet.GEOM_MESH, physicsClientId=self._client,
                                            **mesh)
-        body = pybullet.createMultiBody(baseMass=0.0, baseVisualShapeIndex=shape,
-                                        basePosition=position, baseOrientation=orientation,
-                                        physicsClientId=self._client)
+        body: int = pybullet.createMultiBody(baseMass=0.0, baseVisualShapeIndex=shape,
+                                             basePosition=position, baseOrientation=orientation,
+                                             physicsClientId=self._client)
         pybullet.changeVisualShape(body, -1, textureUniqueId=texture, rgbaColor=[1, 1, 1, 1],
                                    physicsClientId=self._client)
         return body
@@ -409,8 +412,10 @@ class SceneRenderer:
             lightDirection=list(light.direction), lightAmbientCoeff=light.ambient,
             lightDiffuseCoeff=light.diffuse, lightSpecularCoeff=light.specular, shadow=0,
             renderer=pybullet.ER_TINY_RENDERER, flags=flags, physicsClientId=self._client)
-        rgb = np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3]
-        ids = depth = None
+        rgb: np.ndarray = np.reshape(np.asarray(rgba, dtype=np.uint8),
+                                     (height, width, 4))[:, :, :3]
+        ids: np.ndarray | None = None
+        depth: np.ndarray | None = None
         if segmentation:
             ids = np.reshape(np.asarray(seg), (height, width))
             near, far = camera.near_m, camera.far_m

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import bisect
 from dataclasses import dataclass, field
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 Item = TypeVar('Item')
 
@@ -214,7 +214,7 @@ class StampSynchronizer(Generic[Item]):
         return best
 
 
-def _stamp(entry: Stamped[object]) -> int:
+def _stamp(entry: Stamped[Any]) -> int:
     return entry.stamp_ns
 
 
