@@ -11,14 +11,20 @@ seeds. Writes stereo_fuzzy_perception/data/fuzzy_fitted.yaml by default.
     python scripts/train_fuzzy_rule_base.py                 # geometric scenes, seed 1 / 2
     python scripts/train_fuzzy_rule_base.py --source geometric --per-type 400
 
-`--source` names a scene source in synthetic_scenes.SCENE_SOURCES; the rendered simulator plugs
-in there.
+`--source` names a scene source in synthetic_scenes.SCENE_SOURCES: `geometric` (perfect surface
+samples + disparity noise) or `rendered` (pybullet images through the real correlation stage,
+~0.5 s per scene). On rendered scenes (about 4 min):
+
+    python scripts/train_fuzzy_rule_base.py --source rendered --per-type 80 \
+        --validation-per-type 20 --train-seed 1 --validation-seed 2 --max-residual-mm 10
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -35,8 +41,10 @@ from stereo_fuzzy_perception.selector_training import (  # noqa: E402
     best_point_errors,
     build_training_set,
     fit_rule_offsets,
+    inlier_scenes,
     make_scenes,
     score_errors,
+    subset,
     with_consequent_areas,
 )
 from stereo_fuzzy_perception.synthetic_scenes import SCENE_SOURCES  # noqa: E402
@@ -56,6 +64,9 @@ def main() -> None:
                         help='areas whose union centre every consequent starts from')
     parser.add_argument('--template', default=str(data_path('fuzzy_chapter.yaml')),
                         help='rule base whose membership functions and premises are kept')
+    parser.add_argument('--max-residual-mm', type=float, default=math.inf,
+                        help='train only on scenes whose target is within this horizontal '
+                        'distance of the correlation-area centre (inf: all)')
     parser.add_argument('--output', default=str(data_path('fuzzy_fitted.yaml')))
     args = parser.parse_args()
     if args.train_seed == args.validation_seed:
@@ -68,13 +79,19 @@ def main() -> None:
     print(f'making {4 * args.per_type} training scenes (seed {args.train_seed}) and '
           f'{4 * args.validation_per_type} validation scenes (seed {args.validation_seed}) '
           f'from the {args.source} source')
+    start = time.perf_counter()
     train_scenes = make_scenes(source, args.per_type, args.train_seed)
     validation_scenes = make_scenes(source, args.validation_per_type, args.validation_seed)
     train = build_training_set(train_scenes, config)
+    train = subset(train, inlier_scenes(train, args.max_residual_mm / 1000.0))
+    print(f'{len(train)} training scenes used, {train.skipped} left out (no area, or target '
+          f'more than {args.max_residual_mm} mm from the area centre)')
+    print(f'scenes made in {time.perf_counter() - start:.0f} s')
     description = (
         f'chapter structure, consequents = centre of areas {list(base_areas)} + offset fitted '
         f'by least squares on {len(train)} {args.source} scenes (seed {args.train_seed}, '
-        f'ridge {args.ridge}); scripts/train_fuzzy_rule_base.py')
+        f'ridge {args.ridge}, max residual {args.max_residual_mm} mm); '
+        'scripts/train_fuzzy_rule_base.py')
     fitted = fit_rule_offsets(with_consequent_areas(template, base_areas), train, args.ridge,
                               name='fitted', description=description)
     rig = train_scenes[0].rig
@@ -92,12 +109,13 @@ def main() -> None:
     header = (f'Fitted rule base of fuzzy_best_point_node: written by '
               f'scripts/train_fuzzy_rule_base.py\n'
               f'  --source {args.source} --per-type {args.per_type} --train-seed '
-              f'{args.train_seed} --ridge {args.ridge} --base-areas {args.base_areas}\n'
+              f'{args.train_seed} --ridge {args.ridge} --base-areas {args.base_areas}'
+              f' --max-residual-mm {args.max_residual_mm}\n'
               'Same structure as fuzzy_chapter.yaml (areas, ratios, membership functions, '
               'Eq. 10);\nconsequent = centre of the listed areas + offset_m [m] in world, '
               'fitted by least squares.')
     save_rule_base(fitted, args.output, header)
-    print(f'wrote {args.output}')
+    print(f'wrote {args.output} ({time.perf_counter() - start:.0f} s in all)')
 
 
 if __name__ == '__main__':

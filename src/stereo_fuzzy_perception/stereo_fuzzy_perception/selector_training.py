@@ -93,6 +93,25 @@ def build_training_set(scenes: Iterable[SyntheticScene], config: AreaConfig) -> 
                        arrays['targets'], np.array(kinds), skipped)
 
 
+def inlier_scenes(data: TrainingSet, max_residual_m: float = math.inf) -> np.ndarray:
+    """Return which scenes' targets lie within `max_residual_m` (horizontally) of the centroid.
+
+    On rendered scenes the correlation area is sometimes not the object's top at all (a thin disc
+    lost in the surface, mismatches above it); no consequent can correct that, and a least-squares
+    fit or a network trained on it is pulled away from the scenes it can correct.
+    """
+    residual = data.targets[:, :2] - data.nn_base[:, :2]
+    return np.hypot(residual[:, 0], residual[:, 1]) <= max_residual_m
+
+
+def subset(data: TrainingSet, keep: np.ndarray) -> TrainingSet:
+    """Return the scenes of `data` where `keep` is True."""
+    return TrainingSet(data.ratios[keep], data.centres[keep], data.counts[keep],
+                       data.top_height[keep], data.features[keep], data.nn_base[keep],
+                       data.targets[keep], data.object_types[keep],
+                       data.skipped + int(np.sum(~keep)))
+
+
 def fit_rule_offsets(template: RuleBase, data: TrainingSet, ridge: float = 1e-3,
                      name: str = 'fitted', description: str = '') -> RuleBase:
     """Return `template` with each rule's offset fitted by least squares (x, y) on `data`.
