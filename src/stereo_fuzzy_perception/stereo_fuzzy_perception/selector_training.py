@@ -101,7 +101,8 @@ def inlier_scenes(data: TrainingSet, max_residual_m: float = math.inf) -> np.nda
     fit or a network trained on it is pulled away from the scenes it can correct.
     """
     residual = data.targets[:, :2] - data.nn_base[:, :2]
-    return np.hypot(residual[:, 0], residual[:, 1]) <= max_residual_m
+    inliers: np.ndarray = np.hypot(residual[:, 0], residual[:, 1]) <= max_residual_m
+    return inliers
 
 
 def subset(data: TrainingSet, keep: np.ndarray) -> TrainingSet:

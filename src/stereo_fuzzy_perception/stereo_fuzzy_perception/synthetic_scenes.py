@@ -110,7 +110,8 @@ class ConvexPrism:
     def contains_xy(self, xy: np.ndarray) -> np.ndarray:
         """Return which (N, 2) points lie inside the polygon (a boolean (N,))."""
         normals, offsets = self.planes()
-        return np.all(xy @ normals[:-2, :2].T <= offsets[:-2] + 1e-12, axis=1)
+        inside: np.ndarray = np.all(xy @ normals[:-2, :2].T <= offsets[:-2] + 1e-12, axis=1)
+        return inside
 
     def segment_hits(self, points: np.ndarray, target: np.ndarray) -> np.ndarray:
         """Return which segments points[i] -> target pass through the prism (Cyrus-Beck)."""
@@ -125,7 +126,8 @@ class ConvexPrism:
         t_enter = np.max(np.where(entering, t, 0.0), axis=1, initial=0.0)
         t_exit = np.min(np.where(leaving, t, 1.0), axis=1, initial=1.0)
         parallel_outside = np.any((denominator == 0.0) & (numerator < 0.0), axis=1)
-        return (t_enter < t_exit - 1e-9) & ~parallel_outside
+        hits: np.ndarray = (t_enter < t_exit - 1e-9) & ~parallel_outside
+        return hits
 
 
 def make_object(object_type: str, rng: np.random.Generator, centre_xy: np.ndarray,
@@ -277,7 +279,8 @@ class GeometricSceneSource:
         """Thin samples by the cosine of the viewing angle: pixel density, not area density."""
         view = camera - samples
         cosine = (view @ normal) / np.linalg.norm(view, axis=1)
-        return samples[rng.uniform(size=len(samples)) < np.clip(cosine, 0.0, 1.0)]
+        kept: np.ndarray = samples[rng.uniform(size=len(samples)) < np.clip(cosine, 0.0, 1.0)]
+        return kept
 
     def _object_samples(self, prism: ConvexPrism, rng: np.random.Generator,
                         cameras: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
@@ -345,7 +348,8 @@ class GeometricSceneSource:
         disparity = u_left - u_right - (cx - right.P[0, 2])
         z = -right.P[0, 3] / disparity
         rectified = np.stack([(u_left - cx) * z / fx, (v_left - cy) * z / fy, z], axis=1)
-        return rectified @ left.R  # R maps camera -> rectified; its transpose maps back
+        camera: np.ndarray = rectified @ left.R  # R maps camera -> rectified; R.T maps back
+        return camera
 
     def scenes(self, count: int, seed: int, object_type: str | None = None
                ) -> Iterator[SyntheticScene]:
