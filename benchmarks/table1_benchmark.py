@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -194,14 +195,16 @@ def main() -> None:
     seeds = scene_seeds(args.seed, args.scenes_per_type)
     check_disjoint_from_training(seeds)
     errors, elapsed = evaluate(seeds, choosers(args.compare))
-    command = ' '.join(['python benchmarks/table1_benchmark.py', *sys.argv[1:]])
+    command = shlex.join(['python', 'benchmarks/table1_benchmark.py', *sys.argv[1:]])
     report = '\n\n'.join([
         '# Table 1 on rendered scenes',
         f'`{command}`: {args.scenes_per_type} rendered scenes per object type (seed '
         f'{args.seed}; training used seeds {TRAINING_SEEDS[0]} and {TRAINING_SEEDS[1]}), '
         'pybullet render -> correlation (ZNCC, disparities 32..95 px) -> selector; success = '
         f'best point within {args.tolerance_mm:g} mm (3D) of the top-face centre, no point = '
-        f'miss. Render + match + all selectors: {elapsed:.0f} s. Chapter figures in italics.',
+        f'miss. Render + match + all selectors: {elapsed:.0f} s. Selectors without a label use '
+        'the packaged data files; labelled rows are --compare files. Chapter figures in '
+        'italics.',
         table1(errors, args.tolerance_mm),
         '## Best-point error per selector and object type',
         detail_table(errors, args.tolerance_mm),
