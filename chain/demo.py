@@ -26,6 +26,10 @@ from chain.processes import REPO_ROOT, ProcessGroup, executable_path, wait_for
 DEFAULT_BAG = REPO_ROOT / 'bags' / 'demo_scenes'
 DEFAULT_PARAMS = REPO_ROOT / 'chain' / 'demo_params.yaml'
 OUTPUT_TOPICS = ('best_point', 'best_point/decision', 'gantry/state')
+# The demo and the regression test pass an object when its best point is within 8 mm of the
+# top-face centre: the tool lands on the top face of the smallest object (3 cm across). The
+# stricter 3 mm success rate of the chapter's Table 1 is in benchmarks/table1_benchmark.py.
+DEMO_TOLERANCE_MM = 8.0
 
 
 @dataclass
@@ -150,6 +154,10 @@ class DemoRun:
                      self.group)
             self.lines_sent_at_start = monitor.latest_gantry_state.lines_sent
             self.start_recorder()
+            # correlation_node subscribes once its matching kernels are compiled; the monitor
+            # is the other subscriber of stereo/pair.
+            wait_for(lambda: node.count_subscribers('stereo/pair') >= 2, 120.0,
+                     'correlation_node to be ready (kernels compiled)', spin, self.group)
             self._progress(f'playing {self.bag.name}')
             self.start_player()
             player = self.group.processes[-1]
@@ -299,7 +307,7 @@ def main(argv: list[str] | None = None) -> int:
                         help='ROS parameter file for every node')
     parser.add_argument('--output', type=Path, default=REPO_ROOT / 'output' / 'demo',
                         help='folder for pictures, logs, the outputs bag and results.json')
-    parser.add_argument('--tolerance-mm', type=float, default=3.0,
+    parser.add_argument('--tolerance-mm', type=float, default=DEMO_TOLERANCE_MM,
                         help='largest best-point error that passes [mm]')
     parser.add_argument('--rate', type=float, default=0.5,
                         help='bag playback rate (the bags hold a scene a second)')

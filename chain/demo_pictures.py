@@ -69,8 +69,11 @@ def draw_scene(record: object, params: dict, path: Path) -> bool:
             cv2.circle(overlay, (int(round(u)), int(round(v))), 1, (0, green, 255 - green), -1)
         canvas = cv2.addWeighted(overlay, 0.45, canvas, 0.55, 0.0)
     decision = record.decision
+    border = np.zeros((0, 2))
     if decision is not None and decision.points_used > 0:
         border = to_pixels(np.array([[p.x, p.y, p.z] for p in decision.border_points]))
+        border = border[np.all(np.isfinite(border), axis=1)]
+    if decision is not None and len(border) > 0:
         low, high = border.min(axis=0), border.max(axis=0)
         middle = (low + high) / 2
         box = [tuple(int(round(c)) for c in corner) for corner in (low, high)]
@@ -84,6 +87,8 @@ def draw_scene(record: object, params: dict, path: Path) -> bool:
                            cv2.MARKER_DIAMOND, 10, 2)
         centres = to_pixels(np.array([[p.x, p.y, p.z] for p in decision.area_centres]))
         for number, (u, v) in enumerate(centres, start=1):
+            if not (np.isfinite(u) and np.isfinite(v)):
+                continue  # an empty area has no centre
             cv2.putText(canvas, str(number), (int(u) - 4, int(v) + 4), cv2.FONT_HERSHEY_SIMPLEX,
                         0.45, (255, 255, 0), 1, cv2.LINE_AA)
     marks = []

@@ -63,7 +63,7 @@ class CorrelationNode(Node):
                                                          qos.RESULTS)
         self.diagnostics_publisher = self.create_publisher(DiagnosticArray, '/diagnostics',
                                                            qos.DIAGNOSTICS)
-        self.create_subscription(StereoPair, 'stereo/pair', self._on_pair, input_qos)
+        self._input_qos = input_qos
 
         self._condition = threading.Condition()
         self._pending: StereoPair | None = None
@@ -110,8 +110,12 @@ class CorrelationNode(Node):
 
     def _work(self) -> None:
         seconds = warm_up()
+        # Subscribe only now: until the kernels are compiled (10-15 s on a fresh checkout) the
+        # node could not keep up, and upstream publishers (or `bag play --wait-for-subscribers`)
+        # can see on the graph when it is ready.
+        self.create_subscription(StereoPair, 'stereo/pair', self._on_pair, self._input_qos)
         self.get_logger().info(f'matching kernels ready in {seconds:.2f} s (numba compile or '
-                               'cache load)')
+                               'cache load); subscribed to stereo/pair')
         next_allowed = 0.0
         while True:
             with self._condition:
