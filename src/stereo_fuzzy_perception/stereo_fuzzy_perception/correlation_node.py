@@ -11,7 +11,7 @@ from __future__ import annotations
 import threading
 import time
 import traceback
-from collections import Counter
+from collections import Counter, deque
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -66,7 +66,7 @@ class CorrelationNode(Node):
         self._input_qos = input_qos
 
         self._condition = threading.Condition()
-        self._pending: StereoPair | None = None
+        self._pending: deque[StereoPair] = deque()
         self._stopping = False
         self.received = 0
         self.processed = 0
@@ -97,13 +97,14 @@ class CorrelationNode(Node):
     def _on_pair(self, pair: StereoPair) -> None:
         with self._condition:
             self.received += 1
-            if self._pending is not None:
+            if len(self._pending) >= int(self.parameters['input_queue_depth']):
+                self._pending.popleft()
                 self.dropped['superseded'] += 1
                 self.get_logger().warning(
                     'dropped a pair that waited while the previous one was matched '
                     f"({self.dropped['superseded']} so far): input faster than matching",
                     throttle_duration_sec=5.0)
-            self._pending = pair
+            self._pending.append(pair)
             self._condition.notify()
 
     # --- worker -------------------------------------------------------------------------------
@@ -119,14 +120,14 @@ class CorrelationNode(Node):
         next_allowed = 0.0
         while True:
             with self._condition:
-                while self._pending is None and not self._stopping:
+                while not self._pending and not self._stopping:
                     self._condition.wait()
                 rate = float(self.parameters['max_rate_hz'])
                 while rate > 0.0 and not self._stopping and time.monotonic() < next_allowed:
                     self._condition.wait(next_allowed - time.monotonic())
                 if self._stopping:
                     return
-                pair, self._pending = self._pending, None
+                pair = self._pending.popleft() if self._pending else None
             if pair is None:
                 continue
             if rate > 0.0:

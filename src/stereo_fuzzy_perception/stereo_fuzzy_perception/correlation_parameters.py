@@ -54,6 +54,10 @@ PARAMETERS = [
     ParameterSpec('max_rate_hz', 0.0,
                   'Most pairs matched per second [Hz]; 0 matches every pair it can (the newest '
                   'pair always wins)', minimum=0.0, maximum=1000.0),
+    ParameterSpec('input_queue_depth', 1,
+                  'Pairs waiting while one is matched; when full the oldest is dropped. 1 = the '
+                  'newest pair always wins (bounded latency); more tolerates bursts in replays',
+                  minimum=1, maximum=30),
     ParameterSpec('input_reliability', 'reliable',
                   'Reliability of the stereo/pair subscription', choices=('reliable',
                                                                           'best_effort'),
