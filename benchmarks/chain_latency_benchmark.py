@@ -51,6 +51,9 @@ NODES = ('stereo_sync_node', 'correlation_node', 'fuzzy_best_point_node')
 DEMO_PARAMS = REPO_ROOT / 'chain' / 'demo_params.yaml'
 # What the default rig needs when chain/demo_params.yaml is absent (disparities 37-86 px).
 FALLBACK_OVERRIDES = {'correlation_node': ('min_disparity:=32', 'disparity_range:=64')}
+# Measured as live cameras run: the correlation node works on the newest pair only (the demo
+# replays with a deeper queue so no recorded scene is lost, which adds queueing latency).
+LIVE_OVERRIDES = {'correlation_node': ('input_queue_depth:=1',)}
 INPUT_TOPICS = ('left/image_raw', 'left/camera_info', 'right/image_raw', 'right/camera_info')
 # /diagnostics status names (`<node name>: <what>`, see each node's _publish_diagnostics).
 SYNC_STATUS = 'stereo_sync_node: stereo pairing'
@@ -467,9 +470,12 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
 
 def node_arguments(executable: str) -> list[str]:
     """Return the --ros-args of a node: the demo parameter file, or the fallback overrides."""
+    overrides = LIVE_OVERRIDES.get(executable, ())
     if DEMO_PARAMS.exists():
-        return ['--params-file', str(DEMO_PARAMS)]
-    return [part for value in FALLBACK_OVERRIDES.get(executable, ()) for part in ('-p', value)]
+        files = ['--params-file', str(DEMO_PARAMS)]
+    else:
+        files, overrides = [], (*FALLBACK_OVERRIDES.get(executable, ()), *overrides)
+    return [*files, *(part for value in overrides for part in ('-p', value))]
 
 
 def run(args: argparse.Namespace) -> list[Measurement]:

@@ -1,6 +1,7 @@
 """The correlation area of the chapter's section 4: object points, border points, four areas.
 
-ROS-free (numpy, and scipy.ndimage for connected components). Steps 1-3 of the package README:
+ROS-free (numpy, numba for the one pass over every point, scipy.ndimage for connected
+components). Steps 1-3 of the package README:
 
 1. Matched points go to `world` with the rig's pose; those inside the workspace box and at least
    `surface_margin_m` above the work surface are the object's points. Separated clusters (cells of
@@ -20,6 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from scipy import ndimage
 
@@ -127,6 +129,44 @@ class CorrelationArea:
         return self.status == STATUS_OK
 
 
+@numba.njit(cache=True, nogil=True)
+def _object_points(xyz: np.ndarray, pose: np.ndarray, low: np.ndarray, high: np.ndarray,
+                   u_left: np.ndarray, v_left: np.ndarray, u_right: np.ndarray,
+                   score: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return (world (3, M) [m], indices (M,)) of the points inside the box [low, high].
+
+    One pass in float64 over points of any float type: with numpy the transform, six
+    comparisons, four finiteness tests and the compaction each made a pass of their own over
+    100k points (1.5 of a decision's 3.5 ms). NaN / inf rows fail the comparisons.
+    """
+    count = xyz.shape[0]
+    kept = np.empty(count, np.int64)
+    world = np.empty((3, count), np.float64)
+    used = 0
+    for index in range(count):
+        px, py, pz = float(xyz[index, 0]), float(xyz[index, 1]), float(xyz[index, 2])
+        x = pose[0, 0] * px + pose[0, 1] * py + pose[0, 2] * pz + pose[0, 3]
+        y = pose[1, 0] * px + pose[1, 1] * py + pose[1, 2] * pz + pose[1, 3]
+        z = pose[2, 0] * px + pose[2, 1] * py + pose[2, 2] * pz + pose[2, 3]
+        if not (low[0] <= x <= high[0] and low[1] <= y <= high[1] and low[2] <= z <= high[2]):
+            continue
+        if not (np.isfinite(u_left[index]) and np.isfinite(v_left[index])
+                and np.isfinite(u_right[index]) and np.isfinite(score[index])):
+            continue
+        world[0, used], world[1, used], world[2, used] = x, y, z
+        kept[used] = index
+        used += 1
+    return world[:, :used].copy(), kept[:used].copy()
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) the point kernel for float64 points (what
+    conversions.cloud_to_matched_points gives), so the first decision is fast."""
+    empty = np.zeros(0)
+    _object_points(np.zeros((0, 3)), np.eye(4), np.zeros(3), np.ones(3), empty, empty, empty,
+                   empty)
+
+
 def _label_clusters(world: np.ndarray, gap: float) -> tuple[np.ndarray, int, float]:
     """Return a cluster label per point (0..n-1), the number of clusters and the cell size.
 
@@ -187,21 +227,16 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
         raise CorrelationAreaError(reason)
     points_in = len(points)
     pose = np.asarray(world_from_camera, dtype=float)
-    xyz = np.asarray(points.xyz, dtype=float).reshape(-1, 3)
-    # (3, N), one contiguous row per axis; NaN / inf rows fail every comparison below
-    world = np.dot(pose[:3, :3], xyz.T)
-    world += pose[:3, 3:4]
+    xyz = np.ascontiguousarray(points.xyz).reshape(-1, 3)
+    if xyz.dtype not in (np.float32, np.float64):
+        xyz = xyz.astype(float)
     columns = [np.asarray(column).reshape(-1) for column in
                (points.u_left, points.v_left, points.u_right, points.score)]
-    low, high = config.workspace_min, config.workspace_max
-    floor = max(low[2], config.surface_margin_m)
-    x, y, z = world
-    inside = (x >= low[0]) & (x <= high[0]) & (y >= low[1]) & (y <= high[1])
-    inside &= (z >= floor) & (z <= high[2])
-    for column in columns:
-        inside &= np.isfinite(column)
-    selected = np.flatnonzero(inside)
-    world = np.compress(inside, world, axis=1)
+    low = np.array(config.workspace_min, dtype=float)
+    high = np.array(config.workspace_max, dtype=float)
+    low[2] = max(low[2], config.surface_margin_m)
+    # world: (3, N), one contiguous row per axis
+    world, selected = _object_points(xyz, pose, low, high, *columns)
     valid = len(selected)
 
     def refused(status: str, why: str, clusters: int = 0, cell: float = math.nan

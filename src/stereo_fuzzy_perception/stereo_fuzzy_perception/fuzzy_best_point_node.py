@@ -11,6 +11,7 @@ every input gets its decision.
 from __future__ import annotations
 
 import threading
+import time
 from collections import Counter
 from typing import Any
 
@@ -23,7 +24,7 @@ from std_msgs.msg import Header
 
 from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
 
-from . import qos
+from . import correlation_area, qos
 from .camera_model import StereoCalibration
 from .conversions import (
     best_point_to_point_stamped,
@@ -81,6 +82,11 @@ class FuzzyBestPointNode(Node):
         self.parameters = declare_parameters(self, PARAMETERS, validate=check_parameters,
                                              apply=self._apply_parameters)
         self._chooser = build_chooser(self.parameters)
+        # Compile (first run) or load the numba point kernel now, not on the first input.
+        started = time.monotonic()
+        correlation_area.warm_up()
+        self.get_logger().info(
+            f'point kernel ready in {time.monotonic() - started:.2f} s (numba compile or cache)')
         self.decisions: Counter[str] = Counter({STATUS_OK: 0, **dict.fromkeys(
             REFUSAL_REASONS, 0)})
         self._last_status = 'waiting for input'
