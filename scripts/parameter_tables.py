@@ -1,8 +1,9 @@
-"""Print (or write into README.md) the parameter table of every node, from the node's specs.
+"""Print (or write into the READMEs) the parameter table of every node, from the node's specs.
 
-The tables in README.md sit between `<!-- parameters:NODE -->` and `<!-- /parameters -->`;
-tests/test_readme.py fails when they differ from what this script generates, so the docs cannot
-drift from the defaults. Update them with: python scripts/parameter_tables.py --write
+The tables sit between `<!-- parameters:NODE -->` and `<!-- /parameters -->` in README.md and in
+the package READMEs; tests/test_readme.py fails when they differ from what this script
+generates, so the docs cannot drift from the defaults. Update them with:
+python scripts/parameter_tables.py --write
 """
 
 from __future__ import annotations
@@ -25,6 +26,9 @@ NODE_PARAMETER_MODULES = {
     'gantry_driver_node': 'cartesian_3p_driver.gantry_driver_parameters',
     'fake_gantry': 'cartesian_3p_driver.fake_gantry_parameters',
 }
+# Every README that holds parameter blocks (the top-level one holds all nodes).
+READMES = (REPO_ROOT / 'README.md', REPO_ROOT / 'src/stereo_fuzzy_perception/README.md',
+           REPO_ROOT / 'src/cartesian_3p_driver/README.md')
 BLOCK = re.compile(r'(<!-- parameters:(?P<node>\w+) -->\n)(?P<body>.*?)(<!-- /parameters -->)',
                    re.DOTALL)
 
@@ -56,13 +60,13 @@ def rewrite_readme(text: str) -> str:
 
 
 def main() -> None:
-    """Print the tables, or rewrite README.md in place with --write."""
+    """Print the tables, or rewrite the READMEs in place with --write."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--write', action='store_true', help='rewrite README.md in place')
+    parser.add_argument('--write', action='store_true', help='rewrite the READMEs in place')
     arguments = parser.parse_args()
-    readme = REPO_ROOT / 'README.md'
     if arguments.write:
-        readme.write_text(rewrite_readme(readme.read_text()))
+        for readme in READMES:
+            readme.write_text(rewrite_readme(readme.read_text()))
         return
     for node in NODE_PARAMETER_MODULES:
         print(f'### {node}\n\n{parameter_table(node)}')

@@ -26,9 +26,11 @@ def test_every_node_has_a_parameter_table_in_the_readme():
 
 def test_readme_parameter_tables_match_the_declared_defaults():
     tables = _tables_module()
-    readme = (REPO_ROOT / 'README.md').read_text()
-    assert tables.rewrite_readme(readme) == readme, (
-        'README.md parameter tables are stale: run python scripts/parameter_tables.py --write')
+    for path in tables.READMES:
+        readme = path.read_text()
+        assert tables.rewrite_readme(readme) == readme, (
+            f'{path.relative_to(REPO_ROOT)} parameter tables are stale: run '
+            'python scripts/parameter_tables.py --write')
 
 
 def test_node_config_files_hold_the_declared_defaults():

@@ -66,7 +66,7 @@ class AreaConfig:
 
     workspace_min: tuple[float, float, float] = (0.0, 0.0, 0.0)
     workspace_max: tuple[float, float, float] = (0.40, 0.30, 0.20)
-    surface_margin_m: float = 0.002
+    surface_margin_m: float = 0.003
     cluster_gap_m: float = 0.01
     keep_largest_cluster: bool = True
     top_band_m: float = 0.004
