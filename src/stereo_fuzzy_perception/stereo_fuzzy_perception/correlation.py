@@ -87,6 +87,7 @@ class MatchStatus(enum.IntEnum):
     LOW_SCORE = 4
     NOT_UNIQUE = 5
     LR_INCONSISTENT = 6
+    SKIPPED_ROW = 7  # not matched: only every row_step-th row was asked for
 
 
 @dataclass(frozen=True)
@@ -378,7 +379,7 @@ def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: 
                min_disparity: int, disparity_range: int, x_begin: int, x_end: int,
                y_begin: int, y_end: int, out_x_begin: int, out_x_end: int,
                min_score: np.float32, uniqueness_ratio: np.float32, lr_max_diff: int,
-               subpixel: bool, band_count: int, disparity_out: np.ndarray,
+               subpixel: bool, band_count: int, row_step: int, disparity_out: np.ndarray,
                score_out: np.ndarray, status_out: np.ndarray) -> None:
     """Match rows y_begin..y_end-1 over columns x_begin..x_end-1 (inside r..W-1-r).
 
@@ -386,7 +387,8 @@ def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: 
     disparity min_disparity + i. Column-reversed right arrays are indexed by W - 1 - x_right,
     with x_right = x - min_disparity - i, so that they are contiguous in i. Scores are kept as
     int32 fixed point (_SCORE_ONE = 1.0): LLVM vectorises integer maximum reductions, not
-    floating-point ones, and 2^-24 is finer than float32 resolves a score anyway.
+    floating-point ones, and 2^-24 is finer than float32 resolves a score anyway. Only rows y
+    with y % row_step == 0 are decided; the others only advance the running column sums.
     """
     width = texture_ok.shape[1]
     u64 = numba.uint64
@@ -407,6 +409,13 @@ def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: 
         best_score = np.full(width, none, np.int32)
         for y in range(y_first, y_stop):
             first_row = y == y_first
+            if y % row_step != 0:
+                # No point is taken from this row: bring the column sums to it, score nothing
+                # (a third of a decided row's work).
+                for column in range(x_begin - radius, x_end + radius):
+                    _update_column(column_sums, column, left_padded, right_reversed, y,
+                                   first_row, radius, min_disparity, disparity_range)
+                continue
             for column in range(width):
                 right_best[column] = none
             if first_row:
@@ -552,7 +561,7 @@ def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: 
 
 
 def match(left: np.ndarray, right: np.ndarray, config: MatcherConfig | None = None,
-          band_count: int | None = None) -> DisparityMap:
+          band_count: int | None = None, row_step: int = 1) -> DisparityMap:
     """Match a rectified grey pair by window correlation and return the disparity map.
 
     Args:
@@ -561,6 +570,9 @@ def match(left: np.ndarray, right: np.ndarray, config: MatcherConfig | None = No
         right: (H, W) right rectified grey image, same size.
         config: Matcher settings; MatcherConfig() when None.
         band_count: Row bands matched in parallel; by default 4 per numba thread.
+        row_step: Decide only the rows y with y % row_step == 0 (the rows a triangulation with
+            that stride keeps); the others get status SKIPPED_ROW. The decided rows are
+            exactly those of row_step 1.
 
     Returns:
         The disparity map [px], scores and per-pixel status.
@@ -570,6 +582,8 @@ def match(left: np.ndarray, right: np.ndarray, config: MatcherConfig | None = No
             smaller than the window, or a region of interest outside the image.
     """
     config = config or MatcherConfig()
+    if row_step < 1:
+        raise ValueError(f'row_step {row_step} must be >= 1')
     _check_images(left, right, config)
     height, width = left.shape
     if height < config.window_size or width < config.window_size:
@@ -594,6 +608,9 @@ def match(left: np.ndarray, right: np.ndarray, config: MatcherConfig | None = No
     score = np.full((height, width), np.nan, dtype=np.float32)
     status = np.full((height, width), MatchStatus.OUTSIDE_ROI, dtype=np.uint8)
     status[roi_y:roi_y + roi_height, roi_x:roi_x + roi_width] = MatchStatus.NO_CANDIDATE
+    skipped = np.arange(height) % row_step != 0
+    skipped[:roi_y] = skipped[roi_y + roi_height:] = False
+    status[skipped, roi_x:roi_x + roi_width] = MatchStatus.SKIPPED_ROW
     # The left-right check needs every candidate of the right pixels the region reaches.
     reach = config.disparity_range - 1 if config.lr_check_max_diff >= 0 else 0
     x_begin = max(radius, roi_x - reach)
@@ -607,7 +624,7 @@ def match(left: np.ndarray, right: np.ndarray, config: MatcherConfig | None = No
                    config.disparity_range, x_begin, x_end, roi_y, roi_y + roi_height,
                    out_begin, out_end, np.float32(config.min_score),
                    np.float32(config.uniqueness_ratio), int(config.lr_check_max_diff),
-                   bool(config.subpixel), bands, disparity, score, status)
+                   bool(config.subpixel), bands, int(row_step), disparity, score, status)
     return DisparityMap(disparity, score, status, (roi_x, roi_y, roi_width, roi_height), config)
 
 

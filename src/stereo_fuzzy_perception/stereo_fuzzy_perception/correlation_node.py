@@ -142,7 +142,11 @@ class CorrelationNode(Node):
                 raise RectificationError(
                     f'left image is {left.shape[1]}x{left.shape[0]} but right image is '
                     f'{right.shape[1]}x{right.shape[0]}')
-            result = self.pipeline.process(left, right, calibration)
+            # A stereo/disparity subscriber gets every row; otherwise only the rows that
+            # point_stride publishes are matched.
+            result = self.pipeline.process(
+                left, right, calibration,
+                full_disparity=self.disparity_publisher.get_subscription_count() > 0)
         except ImageEncodingError as error:
             self._drop('encoding', str(error))
             return

@@ -49,7 +49,8 @@ PARAMETERS = [
     ParameterSpec('roi.height', 0, 'Correlation area: height [px]; 0 matches the whole image',
                   minimum=0, maximum=65535),
     ParameterSpec('point_stride', 1,
-                  'Publish every n-th row and column of valid matches (1 = all)',
+                  'Publish every n-th row and column of valid matches (1 = all); only those '
+                  'rows are matched unless stereo/disparity has a subscriber',
                   minimum=1, maximum=16),
     ParameterSpec('max_rate_hz', 0.0,
                   'Most pairs matched per second [Hz]; 0 matches every pair it can (the newest '

@@ -180,3 +180,21 @@ def test_pipeline_recovers_depth_f_b_over_d_on_a_rectified_shift():
     assert np.median(result.points.xyz[:, 2]) == pytest.approx(300.0 * 0.06 / 10.0, rel=1e-3)
     assert set(result.timings_ms) == {'rectify', 'match', 'triangulate'}
     assert rectified_stereo(calibration).left.same_as(result.rectified.left)
+
+
+def test_pipeline_points_do_not_depend_on_matching_only_the_strided_rows():
+    rng = np.random.default_rng(4)
+    scene = cv2.GaussianBlur(rng.uniform(0, 255, (HEIGHT, WIDTH + 20)).astype(np.float32),
+                             (0, 0), 1.2)
+    scene = np.clip(128 + 3 * (scene - scene.mean()), 0, 255).astype(np.uint8)
+    left, right = scene[:, 0:WIDTH], scene[:, 7:7 + WIDTH]
+    calibration = rectified_pair_calibration(300.0, 160.0, 160.0, 0.06, np.eye(3))
+    pipeline = StereoMatchingPipeline(MatcherConfig(window_size=9, disparity_range=32),
+                                      point_stride=2)
+    strided_rows = pipeline.process(left, right, calibration)
+    every_row = pipeline.process(left, right, calibration, full_disparity=True)
+    assert len(strided_rows.points) > 0
+    np.testing.assert_array_equal(strided_rows.points.xyz, every_row.points.xyz)
+    np.testing.assert_array_equal(strided_rows.points.score, every_row.points.score)
+    assert np.isnan(strided_rows.disparity_map.disparity[1::2]).all()
+    assert np.isfinite(every_row.disparity_map.disparity[1::2]).any()

@@ -279,3 +279,30 @@ def test_every_disparity_lies_in_the_searched_range_and_its_partner_in_the_image
     radius = window // 2
     assert np.all(np.rint(columns - disparity) >= radius - 1)
     assert np.all(np.isnan(result.disparity[~result.valid]))
+
+
+@pytest.mark.parametrize('row_step', [2, 3])
+@pytest.mark.parametrize('roi', [(0, 0, 0, 0), (20, 11, 70, 41)])
+@pytest.mark.parametrize('band_count', [1, 5])
+def test_row_step_decides_the_same_rows_and_skips_the_others(row_step, roi, band_count):
+    left, right = shifted_pair(texture(70, 120, seed=6), 5.0)
+    config = MatcherConfig(window_size=7, disparity_range=16, uniqueness_ratio=0.05, roi=roi)
+    every_row = match(to_uint8(left), to_uint8(right), config, band_count=band_count)
+    stepped = match(to_uint8(left), to_uint8(right), config, band_count=band_count,
+                    row_step=row_step)
+    decided = np.arange(70) % row_step == 0
+    np.testing.assert_array_equal(stepped.status[decided], every_row.status[decided])
+    np.testing.assert_array_equal(stepped.disparity[decided], every_row.disparity[decided])
+    x, y, width, height = stepped.roi
+    inside_skipped = stepped.status[y:y + height, x:x + width][~decided[y:y + height]]
+    assert inside_skipped.size > 0
+    assert np.all(inside_skipped == MatchStatus.SKIPPED_ROW)
+    assert np.all(np.isnan(stepped.disparity[~decided]))
+    assert stepped.status_counts()['skipped_row'] == inside_skipped.size
+    assert stepped.status_counts()['valid'] > 0
+
+
+def test_row_step_below_one_is_refused():
+    image = texture(20, 30).astype(np.uint8)
+    with pytest.raises(ValueError, match='row_step 0'):
+        match(image, image, MatcherConfig(window_size=3, disparity_range=4), row_step=0)
