@@ -26,9 +26,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import fcntl
 import os
-import random
 import statistics
 import sys
 import tempfile
@@ -45,6 +43,7 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))
 
 from chain.processes import ProcessGroup, wait_for  # noqa: E402
+from chain.ros_domains import reserved_domain_id  # noqa: E402
 
 PACKAGE = 'stereo_fuzzy_perception'
 NODES = ('stereo_sync_node', 'correlation_node', 'fuzzy_best_point_node')
@@ -63,10 +62,6 @@ SYNC_COUNTERS = ('pairs in', 'pairs out', 'pairs dropped', 'received left/image_
                  *(f'unpaired {topic}' for topic in INPUT_TOPICS))
 CORRELATION_COUNTERS = ('pairs received', 'pairs processed', 'dropped superseded')
 SCENE_OBJECTS = ('cubic_square', 'cylinder', 'cubic_rectangle', 'circle')
-DOMAIN_IDS = range(1, 101)  # Fast DDS port numbers stay valid
-# The same lock files as the tests' ros_domain_id fixture: a benchmark never shares a domain
-# with a concurrent test run.
-DOMAIN_LOCK_DIR = Path(tempfile.gettempdir()) / 'stereo_fuzzy_ros_domains'
 
 
 def progress(text: str) -> None:
@@ -77,25 +72,10 @@ def progress(text: str) -> None:
 @contextlib.contextmanager
 def reserved_domain() -> Iterator[int]:
     """Hold a ROS domain id no test or benchmark on this machine holds, exported to children."""
-    DOMAIN_LOCK_DIR.mkdir(exist_ok=True)
-    candidates = list(DOMAIN_IDS)
-    random.shuffle(candidates)
-    for domain_id in candidates:
-        lock_file = open(DOMAIN_LOCK_DIR / f'{domain_id}.lock', 'w')  # noqa: SIM115
-        try:
-            fcntl.flock(lock_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            lock_file.close()
-            continue
+    with reserved_domain_id() as domain_id:
         os.environ['ROS_DOMAIN_ID'] = str(domain_id)
         os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-        try:
-            yield domain_id
-        finally:
-            fcntl.flock(lock_file, fcntl.LOCK_UN)
-            lock_file.close()
-        return
-    raise RuntimeError(f'all ROS domain ids {DOMAIN_IDS.start}..{DOMAIN_IDS.stop - 1} are in use')
+        yield domain_id
 
 
 # --- input pairs --------------------------------------------------------------------------------

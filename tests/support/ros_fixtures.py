@@ -6,12 +6,9 @@ localhost-only discovery, so two test runs on one machine never see each other's
 
 from __future__ import annotations
 
-import fcntl
 import os
-import random
 import signal
 import subprocess
-import tempfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,35 +16,22 @@ from pathlib import Path
 import pytest
 from ros_waiting import wait_until
 
+from chain.ros_domains import NoFreeDomainError, reserved_domain_id
+
 REPO_ROOT = Path(__file__).resolve().parents[2]
 INSTALL_DIR = REPO_ROOT / 'ros2_ws' / 'install'
-DOMAIN_LOCK_DIR = Path(tempfile.gettempdir()) / 'stereo_fuzzy_ros_domains'
-# Domain ids 1..100 keep Fast DDS's port numbers inside the valid range.
-DOMAIN_IDS = range(1, 101)
 
 
 @pytest.fixture
 def ros_domain_id(monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
     """Reserve a ROS domain id no other test on this machine holds, and export it."""
-    DOMAIN_LOCK_DIR.mkdir(exist_ok=True)
-    candidates = list(DOMAIN_IDS)
-    random.shuffle(candidates)
-    for domain_id in candidates:
-        lock_file = open(DOMAIN_LOCK_DIR / f'{domain_id}.lock', 'w')  # noqa: SIM115
-        try:
-            fcntl.flock(lock_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            lock_file.close()
-            continue
-        monkeypatch.setenv('ROS_DOMAIN_ID', str(domain_id))
-        monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-        try:
+    try:
+        with reserved_domain_id() as domain_id:
+            monkeypatch.setenv('ROS_DOMAIN_ID', str(domain_id))
+            monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
             yield domain_id
-        finally:
-            fcntl.flock(lock_file, fcntl.LOCK_UN)
-            lock_file.close()
-        return
-    pytest.fail(f'all ROS domain ids {DOMAIN_IDS.start}..{DOMAIN_IDS.stop - 1} are in use')
+    except NoFreeDomainError as error:
+        pytest.fail(str(error))
 
 
 @pytest.fixture

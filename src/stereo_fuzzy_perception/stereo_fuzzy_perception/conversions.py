@@ -39,18 +39,9 @@ def image_to_array(msg: Image) -> np.ndarray:
         ImageEncodingError: For an unsupported encoding or a buffer that does not match
             width, height and step.
     """
-    check_encoding(msg.encoding)
+    check_image_layout(msg)
     dtype, channels = SUPPORTED_ENCODINGS[msg.encoding]
     row_bytes = msg.width * channels * dtype.itemsize
-    if msg.width == 0 or msg.height == 0:
-        raise ImageEncodingError(f'image is empty ({msg.width}x{msg.height})')
-    if msg.step < row_bytes:
-        raise ImageEncodingError(
-            f'step {msg.step} is shorter than a row of {msg.width} {msg.encoding} pixels '
-            f'({row_bytes} bytes)')
-    if len(msg.data) < msg.step * msg.height:
-        raise ImageEncodingError(
-            f'data holds {len(msg.data)} bytes, expected step*height = {msg.step * msg.height}')
     buffer = np.frombuffer(bytes(msg.data), dtype=np.uint8, count=msg.step * msg.height)
     rows = buffer.reshape(msg.height, msg.step)[:, :row_bytes]
     byte_order = '>' if msg.is_bigendian else '<'
