@@ -1,8 +1,8 @@
 """Training sets, consequent fitting and evaluation of the best-point selectors. ROS-free.
 
-Used by scripts/train_fuzzy_rule_base.py, scripts/train_neural_baseline.py and
-benchmarks/fuzzy_benchmark.py, so training and evaluation see scenes the same way the node does
-(steps 1-3 of correlation_area.py with the same AreaConfig).
+Used by scripts/train_fuzzy_rule_base.py, scripts/train_neural_baseline.py (which share the
+scene recipe below) and benchmarks/fuzzy_benchmark.py, so training and evaluation see scenes
+the same way the node does (steps 1-3 of correlation_area.py with the same AreaConfig).
 
 Fitting the fuzzy consequents is zero-order Takagi-Sugeno consequent estimation (the least-squares
 half of ANFIS's hybrid rule): with the membership functions fixed, Eq. 10 is linear in the rule
@@ -17,7 +17,9 @@ ridge term for rules that rarely fire. The height offset of step 6 is the mean o
 
 from __future__ import annotations
 
+import argparse
 import math
+import time
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
 
@@ -28,7 +30,7 @@ from .fuzzy_inference import consequent_base_points, normalized_firing_strengths
 from .neural_baseline import neural_base_point, neural_features
 from .point_selectors import BestPointChooser, area_features
 from .rule_base import FuzzyRule, RuleBase
-from .synthetic_scenes import OBJECT_TYPES, SceneSource, SyntheticScene
+from .synthetic_scenes import OBJECT_TYPES, SCENE_SOURCES, SceneSource, SyntheticScene
 
 
 @dataclass(frozen=True)
@@ -203,3 +205,65 @@ def score_errors(errors: np.ndarray, tolerance_mm: float = 3.0) -> SelectorScore
                          float(vertical.mean()), float(np.percentile(vertical, 95)),
                          float(np.sum(total <= tolerance_mm)) / len(errors),
                          int(decided.sum()), len(errors))
+
+
+# --- the training recipe shared by scripts/train_*.py ------------------------------------------
+
+
+def add_recipe_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the scene recipe options both training scripts take (source, counts, seeds)."""
+    parser.add_argument('--source', default='geometric', choices=sorted(SCENE_SOURCES))
+    parser.add_argument('--per-type', type=int, default=300,
+                        help='training scenes per object type')
+    parser.add_argument('--validation-per-type', type=int, default=60)
+    parser.add_argument('--train-seed', type=int, default=1)
+    parser.add_argument('--validation-seed', type=int, default=2)
+    parser.add_argument('--max-residual-mm', type=float, default=math.inf,
+                        help='train only on scenes whose target is within this horizontal '
+                        'distance of the correlation-area centre (inf: all)')
+
+
+@dataclass(frozen=True)
+class TrainingScenes:
+    """The scenes of one training run: all training and validation scenes, and the set used."""
+
+    train_scenes: list[SyntheticScene]
+    validation_scenes: list[SyntheticScene]
+    train: TrainingSet
+
+
+def make_training_scenes(args: argparse.Namespace, config: AreaConfig) -> TrainingScenes:
+    """Make the scenes the recipe options describe, printing progress to stdout.
+
+    Raises:
+        ValueError: When training and validation would use the same seed.
+    """
+    if args.train_seed == args.validation_seed:
+        raise ValueError('training and validation scenes must come from different seeds')
+    source = SCENE_SOURCES[args.source]()
+    print(f'making {4 * args.per_type} training scenes (seed {args.train_seed}) and '
+          f'{4 * args.validation_per_type} validation scenes (seed {args.validation_seed}) '
+          f'from the {args.source} source')
+    start = time.perf_counter()
+    train_scenes = make_scenes(source, args.per_type, args.train_seed)
+    validation_scenes = make_scenes(source, args.validation_per_type, args.validation_seed)
+    train = build_training_set(train_scenes, config)
+    train = subset(train, inlier_scenes(train, args.max_residual_mm / 1000.0))
+    print(f'{len(train)} training scenes used, {train.skipped} left out (no area, or target '
+          f'more than {args.max_residual_mm} mm from the area centre)')
+    print(f'scenes made in {time.perf_counter() - start:.0f} s')
+    return TrainingScenes(train_scenes, validation_scenes, train)
+
+
+def print_scores(choosers: dict[str, BestPointChooser], scenes: TrainingScenes) -> None:
+    """Print a markdown table of each chooser's errors on the training and validation scenes."""
+    print('| selector | set | horizontal mean [mm] | horizontal p95 [mm] | '
+          'vertical mean [mm] | within 3 mm |')
+    print('|---|---|---|---|---|---|')
+    for label, chooser in choosers.items():
+        for set_name, chosen in (('train', scenes.train_scenes),
+                                 ('validation', scenes.validation_scenes)):
+            score = score_errors(best_point_errors(chooser, chosen))
+            print(f'| {label} | {set_name} | {score.horizontal_mean:.2f} | '
+                  f'{score.horizontal_p95:.2f} | {score.vertical_mean:.2f} | '
+                  f'{100 * score.success_rate:.1f} % |')
