@@ -219,3 +219,34 @@ def test_disparity_image_is_published_to_a_subscriber(harness):
     valid = data >= message.min_disparity
     assert valid.mean() > 0.7
     assert np.median(data[valid]) == pytest.approx(SHIFT, abs=0.05)
+
+
+def _publish_burst_after_one_processed(h, stamps: range) -> None:
+    """Publish one pair, wait until it is matched, then publish `stamps` at once."""
+    h.publish_and_wait_processed(stereo_pair(stamp_sec=stamps.start - 1))
+    for stamp in stamps:
+        h.publisher.publish(stereo_pair(stamp_sec=stamp))
+    wait_until(lambda: h.node.received == len(stamps) + 1, TIMEOUT,
+               'the node to receive the burst', h.executor)
+
+
+def test_busy_node_works_on_the_newest_pair_and_counts_the_superseded(harness):
+    # max_rate_hz holds the worker 2 s after each pair, so the burst arrives while it is busy.
+    h = harness(max_rate_hz=0.5, input_queue_depth=1)
+    _publish_burst_after_one_processed(h, range(2, 6))
+    wait_until(lambda: h.node.processed + h.node.dropped['superseded'] == 5, TIMEOUT,
+               'every pair to be matched or counted as superseded', h.executor)
+    wait_until(lambda: len(h.matches) == h.node.processed, TIMEOUT,
+               'the matches of every processed pair', h.executor)
+    stamps = [message.header.stamp.sec for message in h.matches]
+    assert stamps[0] == 1 and stamps[-1] == 5, stamps  # the newest pair is never the one dropped
+    assert stamps == sorted(stamps)
+    assert h.node.dropped['superseded'] >= 1
+
+
+def test_input_queue_depth_keeps_a_burst_that_fits(harness):
+    h = harness(max_rate_hz=0.5, input_queue_depth=4)
+    _publish_burst_after_one_processed(h, range(2, 6))
+    wait_until(lambda: len(h.matches) == 5, TIMEOUT, 'all five pairs matched', h.executor)
+    assert [message.header.stamp.sec for message in h.matches] == [1, 2, 3, 4, 5]
+    assert h.node.dropped['superseded'] == 0
