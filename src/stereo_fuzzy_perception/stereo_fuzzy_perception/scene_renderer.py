@@ -376,9 +376,21 @@ class SceneRenderer:
                                    physicsClientId=self._client)
         return body
 
+    def _fresh_world(self) -> None:
+        """Start from an empty world on a new connection.
+
+        pybullet caches textures by file path for the life of a connection (resetSimulation
+        keeps them): reloading 'surface.bmp' with new pixels returned the first scene's
+        texture, so a scene looked different depending on what was rendered before it, and
+        unique file names instead leak about 5 MB per scene. A new DIRECT connection costs
+        about a millisecond and frees everything.
+        """
+        pybullet.disconnect(self._client)
+        self._client = pybullet.connect(pybullet.DIRECT)
+
     def _build(self, scene: Scene) -> int:
         """Reset the world and add the surface and the object; return the object's body id."""
-        pybullet.resetSimulation(physicsClientId=self._client)
+        self._fresh_world()
         settings = self.textures
         surface_span = 2.0 * settings.surface_half_extent_m
         surface_texture = self._load_texture('surface', random_texture(
@@ -464,7 +476,7 @@ class SceneRenderer:
         Returns:
             (left_masks, right_masks): one boolean HxW mask per point and camera.
         """
-        pybullet.resetSimulation(physicsClientId=self._client)
+        self._fresh_world()
         shape = pybullet.createVisualShape(pybullet.GEOM_SPHERE, radius=radius_m,
                                            physicsClientId=self._client)
         bodies = [pybullet.createMultiBody(baseMass=0.0, baseVisualShapeIndex=shape,

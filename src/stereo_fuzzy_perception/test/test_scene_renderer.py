@@ -148,6 +148,18 @@ def test_rendering_is_deterministic_and_depends_on_the_seed():
     assert not np.array_equal(a.left, other.left)
 
 
+def test_a_scene_looks_the_same_whatever_was_rendered_before_it():
+    # pybullet caches textures by file path per connection: reusing a file name once gave
+    # every later scene the first scene's textures.
+    scene = random_scene(21, 'cylinder')
+    with SceneRenderer(encoding='mono8') as fresh, SceneRenderer(encoding='mono8') as used:
+        expected = fresh.render(scene)
+        used.render(random_scene(22, 'circle'))
+        after_another = used.render(scene)
+    assert np.array_equal(expected.left, after_another.left)
+    assert np.array_equal(expected.right, after_another.right)
+
+
 @pytest.mark.parametrize('kind', OBJECT_TYPES)
 def test_each_object_type_is_visible_textured_and_unsaturated_in_both_images(renderer, kind):
     frame = renderer.render(random_scene(21, kind), with_maps=True)
