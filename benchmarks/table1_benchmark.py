@@ -6,7 +6,8 @@ the share of trials in which the neural network and the fuzzy system found the r
 (97-98 % and 100 %). This benchmark measures it through the full perception path:
 
     random_scene -> pybullet render (SceneRenderer, 1 grey level noise)
-      -> correlation (StereoMatchingPipeline, ZNCC, disparities 32..95 px)
+      -> correlation (StereoMatchingPipeline, ZNCC, disparities 32..95 px, every
+         --point-stride-th row and column as correlation_node publishes them)
       -> every selector on the same matched points (BestPointChooser.decide)
 
 A trial succeeds when the best point lies within --tolerance-mm (3D) of the centre of the
@@ -40,6 +41,7 @@ for variable in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ.setdefault(variable, '1')
 
 import matplotlib  # noqa: E402
+import yaml  # noqa: E402
 
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
@@ -55,6 +57,7 @@ assert set(SELECTOR_ORDER) == set(SELECTORS)
 TRAINING_SEEDS = (1, 2)
 TYPE_TITLES = {'circle': 'Circle', 'cylinder': 'Cylinder', 'cubic_rectangle': 'Cubic Rectangle',
                'cubic_square': 'Cubic Square'}
+DEMO_PARAMS = ROOT / 'chain' / 'demo_params.yaml'
 CHAPTER_TABLE1 = {'neural network (chapter)': (98.3, 98.0, 97.0, 97.2),
                   'fuzzy system (chapter)': (100.0, 100.0, 100.0, 100.0)}
 
@@ -91,12 +94,18 @@ def choosers(compare: list[str]) -> dict[str, BestPointChooser]:
     return result
 
 
-def evaluate(seeds: dict[str, list[int]], selectors: dict[str, BestPointChooser]
-             ) -> tuple[dict[str, dict[str, np.ndarray]], float]:
+def demo_point_stride() -> int:
+    """Return correlation_node's point_stride in the demo parameters (the chain as shipped)."""
+    parameters = yaml.safe_load(DEMO_PARAMS.read_text())
+    return int(parameters['correlation_node']['ros__parameters'].get('point_stride', 1))
+
+
+def evaluate(seeds: dict[str, list[int]], selectors: dict[str, BestPointChooser],
+             point_stride: int = 1) -> tuple[dict[str, dict[str, np.ndarray]], float]:
     """Render and match every scene once; return errors [m] per selector per type, and the time."""
     errors = {name: {kind: [] for kind in OBJECT_TYPES} for name in selectors}
     start = time.perf_counter()
-    with RenderedSceneSource() as source:
+    with RenderedSceneSource(point_stride=point_stride) as source:
         for kind in OBJECT_TYPES:
             for seed in seeds[kind]:
                 scene = source.scene_of_seed(seed, kind)
@@ -187,6 +196,9 @@ def main() -> None:
                         help='a best point within this 3D distance of the target succeeds')
     parser.add_argument('--output', default=str(ROOT / 'benchmarks' / 'results'),
                         help='directory for table1.md and table1_errors.png')
+    parser.add_argument('--point-stride', type=int, default=demo_point_stride(),
+                        help="correlation_node's point_stride (default: the demo's, "
+                        'chain/demo_params.yaml)')
     parser.add_argument('--compare', action='append', default=[], metavar='LABEL=PATH',
                         help='also evaluate a rule base (.yaml) or network weights (.npz)')
     args = parser.parse_args()
@@ -194,13 +206,14 @@ def main() -> None:
         parser.error(f'seed {args.seed} is a training seed ({TRAINING_SEEDS})')
     seeds = scene_seeds(args.seed, args.scenes_per_type)
     check_disjoint_from_training(seeds)
-    errors, elapsed = evaluate(seeds, choosers(args.compare))
+    errors, elapsed = evaluate(seeds, choosers(args.compare), args.point_stride)
     command = shlex.join(['python', 'benchmarks/table1_benchmark.py', *sys.argv[1:]])
     report = '\n\n'.join([
         '# Table 1 on rendered scenes',
         f'`{command}`: {args.scenes_per_type} rendered scenes per object type (seed '
         f'{args.seed}; training used seeds {TRAINING_SEEDS[0]} and {TRAINING_SEEDS[1]}), '
-        'pybullet render -> correlation (ZNCC, disparities 32..95 px) -> selector; success = '
+        'pybullet render -> correlation (ZNCC, disparities 32..95 px, point stride '
+        f'{args.point_stride}) -> selector; success = '
         f'best point within {args.tolerance_mm:g} mm (3D) of the top-face centre, no point = '
         f'miss. Render + match + all selectors: {elapsed:.0f} s. Selectors without a label use '
         'the packaged data files; labelled rows are --compare files. Chapter figures in '
