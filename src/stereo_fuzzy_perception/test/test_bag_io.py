@@ -172,7 +172,8 @@ def test_committed_bags_hold_every_object_type_with_consistent_ground_truth(name
         '/right/camera_info': scenes, '/ground_truth/target': scenes,
         '/ground_truth/object': scenes}
     assert info.compression == 'zstd'
-    assert info.size_bytes < 3_000_000, f'{name} grew to {info.size_bytes} bytes'
+    # Each scene carries its own textures; 12 mono8 scenes compress to about 4.4 MB.
+    assert info.size_bytes < 5_000_000, f'{name} grew to {info.size_bytes} bytes'
     typestore = project_typestore()
     stamps: dict[int, set[str]] = {}
     targets, objects = [], []
