@@ -167,11 +167,12 @@ def _object_points(xyz: np.ndarray, pose: np.ndarray, low: np.ndarray, high: np.
 
 
 def warm_up() -> None:
-    """Compile (or load from numba's cache) the point kernel for float64 points (what
+    """Compile (or load from numba's cache) the kernels for float64 points (what
     conversions.cloud_to_matched_points gives), so the first decision is fast."""
     empty = np.zeros(0)
     _object_points(np.zeros((0, 3)), np.eye(4), np.zeros(3), np.ones(3), empty, empty, empty,
                    empty)
+    _dense_top_limit(np.zeros(1), TOP_BIN_M, TOP_DENSE_SHARE)
 
 
 def _label_clusters(world: np.ndarray, gap: float) -> tuple[np.ndarray, int, float]:
@@ -203,6 +204,20 @@ def _order_statistic(values: np.ndarray, fraction: float) -> float:
     return float(np.partition(values, rank)[rank])
 
 
+@numba.njit(cache=True, nogil=True)
+def _dense_top_limit(heights: np.ndarray, bin_m: float, share: float) -> float:
+    """Return the upper edge [m] of the highest height bin with `share` of the fullest's count."""
+    low, high = heights.min(), heights.max()
+    counts = np.zeros(int((high - low) / bin_m) + 1, np.int64)
+    for height in heights:
+        counts[int((height - low) / bin_m)] += 1
+    threshold = share * counts.max()
+    highest = len(counts) - 1
+    while counts[highest] < threshold:
+        highest -= 1
+    return float(low + (highest + 1) * bin_m)
+
+
 def _robust_top(heights: np.ndarray) -> float:
     """Return the height of the object's top among a cluster's heights [m].
 
@@ -212,11 +227,8 @@ def _robust_top(heights: np.ndarray) -> float:
     height (TOP_BIN_M), the highest bin holding at least TOP_DENSE_SHARE of the fullest bin
     ends the object, and the top is the TOP_QUANTILE of the heights up to that bin.
     """
-    low = float(heights.min())
-    bins = np.floor((heights - low) / TOP_BIN_M).astype(np.int64)
-    counts = np.bincount(bins)
-    highest_dense = int(np.flatnonzero(counts >= TOP_DENSE_SHARE * counts.max())[-1])
-    return _order_statistic(heights[bins <= highest_dense], TOP_QUANTILE)
+    limit = _dense_top_limit(heights, TOP_BIN_M, TOP_DENSE_SHARE)
+    return _order_statistic(heights[heights < limit], TOP_QUANTILE)
 
 
 def _median(values: np.ndarray) -> float:
