@@ -142,28 +142,38 @@ def _object_points(xyz: np.ndarray, pose: np.ndarray, low: np.ndarray, high: np.
                    score: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Return (world (3, M) [m], indices (M,)) of the points inside the box [low, high].
 
-    One pass in float64 over points of any float type: with numpy the transform, six
-    comparisons, four finiteness tests and the compaction each made a pass of their own over
-    100k points (1.5 of a decision's 3.5 ms). NaN / inf rows fail the comparisons.
+    Two passes in float64 over points of any float type, the first without branches (a
+    point is in or out about half the time: mispredicted branches cost more than computing
+    the transform twice). With numpy the transform, six comparisons, four finiteness tests
+    and the compaction each made a pass of their own (1.5 of a decision's 5 ms at 100k
+    points). NaN / inf rows fail the comparisons or the finiteness test.
     """
     count = xyz.shape[0]
-    kept = np.empty(count, np.int64)
-    world = np.empty((3, count), np.float64)
+    inside = np.empty(count, np.bool_)
     used = 0
     for index in range(count):
         px, py, pz = float(xyz[index, 0]), float(xyz[index, 1]), float(xyz[index, 2])
         x = pose[0, 0] * px + pose[0, 1] * py + pose[0, 2] * pz + pose[0, 3]
         y = pose[1, 0] * px + pose[1, 1] * py + pose[1, 2] * pz + pose[1, 3]
         z = pose[2, 0] * px + pose[2, 1] * py + pose[2, 2] * pz + pose[2, 3]
-        if not (low[0] <= x <= high[0] and low[1] <= y <= high[1] and low[2] <= z <= high[2]):
-            continue
-        if not (np.isfinite(u_left[index]) and np.isfinite(v_left[index])
-                and np.isfinite(u_right[index]) and np.isfinite(score[index])):
-            continue
-        world[0, used], world[1, used], world[2, used] = x, y, z
-        kept[used] = index
-        used += 1
-    return world[:, :used].copy(), kept[:used].copy()
+        finite = np.isfinite(float(u_left[index]) + float(v_left[index])
+                             + float(u_right[index]) + float(score[index]))
+        keep = ((low[0] <= x) & (x <= high[0]) & (low[1] <= y) & (y <= high[1])
+                & (low[2] <= z) & (z <= high[2]) & finite)
+        inside[index] = keep
+        used += keep
+    world = np.empty((3, used), np.float64)
+    kept = np.empty(used, np.int64)
+    slot = 0
+    for index in range(count):
+        if inside[index]:
+            px, py, pz = float(xyz[index, 0]), float(xyz[index, 1]), float(xyz[index, 2])
+            for axis in range(3):
+                world[axis, slot] = (pose[axis, 0] * px + pose[axis, 1] * py
+                                     + pose[axis, 2] * pz + pose[axis, 3])
+            kept[slot] = index
+            slot += 1
+    return world, kept
 
 
 def warm_up() -> None:
