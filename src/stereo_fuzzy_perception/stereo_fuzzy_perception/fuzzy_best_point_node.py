@@ -4,7 +4,7 @@ Subscribes `stereo/matches` (StereoMatches), publishes `best_point` (PointStampe
 stamped with the pair's stamp, only when a point was chosen) and `best_point/decision`
 (FuzzyDecision, for every input, with the reason when no point was chosen), and /diagnostics.
 The algorithm is point_selectors.BestPointChooser; this node only converts and publishes. A
-decision takes well under 5 ms even at 100k points, so it runs in the subscription callback and
+decision takes a few milliseconds even at 100k points, so it runs in the subscription callback and
 every input gets its decision.
 """
 
