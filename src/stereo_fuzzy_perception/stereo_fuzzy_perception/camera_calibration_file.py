@@ -25,6 +25,7 @@ import numpy as np
 import yaml
 
 from .camera_model import CameraCalibration
+from .yaml_file import read_yaml_file
 
 
 class CalibrationFileError(ValueError):
@@ -56,14 +57,7 @@ def read_calibration_yaml(path: str | Path) -> CameraCalibration:
             holds a value of the wrong kind or shape; the message names the file and the key.
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as error:
-        raise CalibrationFileError(f'{path}: cannot read calibration file ({error})') from error
-    try:
-        document = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise CalibrationFileError(f'{path}: not valid YAML ({error})') from error
+    document = read_yaml_file(path, CalibrationFileError, 'calibration file')
     if not isinstance(document, dict):
         raise CalibrationFileError(
             f'{path}: expected a mapping with image_width, image_height, camera_matrix, ...; '

@@ -29,6 +29,8 @@ from typing import Any
 
 import yaml
 
+from .yaml_file import read_yaml_file
+
 PACKAGED_RULE_BASES = {'fuzzy_chapter': 'fuzzy_chapter.yaml', 'fuzzy_fitted': 'fuzzy_fitted.yaml'}
 """The packaged rule base file of each fuzzy selector."""
 
@@ -213,14 +215,7 @@ def load_rule_base(path: str | Path) -> RuleBase:
         RuleBaseError: When the file is missing, not YAML, or has a bad entry.
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as error:
-        raise RuleBaseError(f'{path}: cannot read the rule base file ({error})') from error
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise RuleBaseError(f'{path}: not valid YAML ({error})') from error
+    data = read_yaml_file(path, RuleBaseError, 'the rule base file')
     return rule_base_from_dict(data, str(path))
 
 
