@@ -11,6 +11,7 @@ decision message and the least-squares fit of the consequents (`normalized_firin
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,12 +36,43 @@ def triangular_degree(x: np.ndarray | float, term: TriangularTerm) -> np.ndarray
     return membership
 
 
+@dataclass(frozen=True)
+class _RuleArrays:
+    """A rule base as index arrays, so one inference is a few whole-array operations.
+
+    Attributes:
+        premise_term: (L,) index into the rule base's terms of each rule's premise.
+        premise_area: (L,) 0..3: the area whose ratio is the premise.
+        consequent_areas: (L, 4) 1.0 where the area belongs to the rule's consequent union.
+        offsets: (L, 3) consequent offsets [m].
+    """
+
+    premise_term: np.ndarray
+    premise_area: np.ndarray
+    consequent_areas: np.ndarray
+    offsets: np.ndarray
+
+
+@functools.lru_cache(maxsize=16)
+def _rule_arrays(rule_base: RuleBase) -> _RuleArrays:
+    term_index = {term.name: index for index, term in enumerate(rule_base.terms)}
+    consequent_areas = np.zeros((len(rule_base.rules), 4))
+    for row, rule in enumerate(rule_base.rules):
+        consequent_areas[row, np.asarray(rule.consequent_areas) - 1] = 1.0
+    return _RuleArrays(np.array([term_index[rule.term] for rule in rule_base.rules]),
+                       np.array([rule.area - 1 for rule in rule_base.rules]),
+                       consequent_areas,
+                       np.array([rule.offset_m for rule in rule_base.rules], dtype=float))
+
+
 def membership_degrees(rule_base: RuleBase, ratios: np.ndarray) -> np.ndarray:
     """Return the premise degree of every rule, shape (..., L) for ratios of shape (..., 4)."""
     ratios = np.asarray(ratios, dtype=float)
-    by_term = {term.name: triangular_degree(ratios, term) for term in rule_base.terms}
-    columns = [by_term[rule.term][..., rule.area - 1] for rule in rule_base.rules]
-    return np.stack(columns, axis=-1)
+    arrays = _rule_arrays(rule_base)
+    by_term = np.stack([triangular_degree(ratios, term) for term in rule_base.terms],
+                       axis=-2)  # (..., T, 4)
+    degrees: np.ndarray = by_term[..., arrays.premise_term, arrays.premise_area]
+    return degrees
 
 
 def firing_strengths(degrees: np.ndarray, consequents: np.ndarray) -> np.ndarray:
@@ -77,21 +109,18 @@ def consequent_base_points(rule_base: RuleBase, centres: np.ndarray,
 
     Args:
         rule_base: The rules.
-        centres: (..., 4, 3) area centres [m].
+        centres: (..., 4, 3) area centres [m] (NaN for an empty area).
         counts: (..., 4) points per area.
+
+    Returns:
+        The count-weighted mean of the union's area centres; NaN when all of them are empty.
     """
-    centres = np.asarray(centres, dtype=float)
-    counts = np.asarray(counts, dtype=float)
-    finite_centres = np.nan_to_num(centres)
-    by_areas: dict[tuple[int, ...], np.ndarray] = {}
+    weights = (np.asarray(counts, dtype=float)[..., np.newaxis, :]
+               * _rule_arrays(rule_base).consequent_areas)  # (..., L, 4)
     with np.errstate(invalid='ignore', divide='ignore'):
-        for areas in {rule.consequent_areas for rule in rule_base.rules}:
-            index = np.asarray(areas) - 1
-            weight = counts[..., index]
-            total = weight.sum(axis=-1, keepdims=True)
-            by_areas[areas] = np.einsum('...k,...kj->...j', weight,
-                                        finite_centres[..., index, :]) / total
-    return np.stack([by_areas[rule.consequent_areas] for rule in rule_base.rules], axis=-2)
+        bases: np.ndarray = ((weights @ np.nan_to_num(np.asarray(centres, dtype=float)))
+                             / weights.sum(axis=-1, keepdims=True))
+    return bases
 
 
 @dataclass(frozen=True)
@@ -124,8 +153,8 @@ def infer(rule_base: RuleBase, areas: FourAreas) -> FuzzyResult:
         Eq. 10 point (None if nothing fired).
     """
     degrees = membership_degrees(rule_base, areas.ratio)
-    offsets = np.array([rule.offset_m for rule in rule_base.rules], dtype=float)
-    consequents = consequent_base_points(rule_base, areas.centres, areas.counts) + offsets
+    consequents = (consequent_base_points(rule_base, areas.centres, areas.counts)
+                   + _rule_arrays(rule_base).offsets)
     strengths = firing_strengths(degrees, consequents)
     total = float(strengths.sum())
     point = None if total <= 0.0 else (strengths @ np.nan_to_num(consequents)) / total

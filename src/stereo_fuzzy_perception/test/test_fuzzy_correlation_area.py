@@ -2,11 +2,15 @@
 
 import numpy as np
 import pytest
+from scipy import ndimage
 from stereo_fuzzy_perception.correlation_area import (
     DEGENERATE_AREA,
     NO_POINTS,
     STATUS_OK,
     TOO_FEW_POINTS,
+    TOP_BIN_M,
+    TOP_DENSE_SHARE,
+    TOP_QUANTILE,
     AreaConfig,
     CorrelationArea,
     CorrelationAreaError,
@@ -91,6 +95,17 @@ def test_sparse_wrong_matches_above_the_object_do_not_lift_its_top():
     assert area.status == STATUS_OK
     assert area.top_height == pytest.approx(0.03, abs=0.0005)
     assert area.points_used >= 1000  # the whole top face is in the band
+
+
+def test_top_is_the_quantile_when_every_height_level_holds_one_point():
+    # 100 points 1 mm apart in height: every 1 mm level is dense, and the 99 % quantile
+    # (rank 98) is the first point of its level, an edge of the search by level
+    heights = 0.0105 + 0.001 * np.arange(100)
+    world = np.column_stack([np.full(100, 0.2), np.full(100, 0.15), heights])
+    area = find_correlation_area(points_from_world(world), WORLD_FROM_LEFT,
+                                 AreaConfig(top_band_m=0.0045, min_points=1))
+    assert area.points_used == 6  # heights[94:]: at most 4.5 mm below heights[98]
+    assert area.top_height == pytest.approx(0.5 * (heights[96] + heights[97]), abs=1e-12)
 
 
 def test_nan_and_infinite_rows_are_ignored():
@@ -191,3 +206,59 @@ def test_top_height_of_noise_free_scene_is_the_object_top(kind):
     assert area.top_height == pytest.approx(scene.target_world[2], abs=1e-6)
     horizontal = np.hypot(*(area.xyz_world[:, :2].mean(axis=0) - scene.target_world[:2]))
     assert horizontal < 0.005, f'top band centroid {1000 * horizontal:.2f} mm off'
+
+
+def plain_numpy_area(world: np.ndarray, config: AreaConfig) -> tuple[np.ndarray, float]:
+    """Step 1's selection written plainly with numpy and scipy: (band points (M, 3), top)."""
+    low = np.array(config.workspace_min, dtype=float)
+    high = np.array(config.workspace_max, dtype=float)
+    low[2] = max(low[2], config.surface_margin_m)
+    world = world[np.all((world >= low) & (world <= high), axis=1)]
+    start = world.min(axis=0)
+    cells = np.floor((world.max(axis=0) - start) / config.cluster_gap_m).astype(int) + 1
+    index = np.minimum(((world - start) / config.cluster_gap_m).astype(int), cells - 1)
+    occupied = np.zeros(cells, dtype=bool)
+    occupied[tuple(index.T)] = True
+    labels, _ = ndimage.label(occupied, structure=np.ones((3, 3, 3)))
+    point_labels = labels[tuple(index.T)]
+    world = world[point_labels == np.argmax(np.bincount(point_labels)[1:]) + 1]
+    heights = world[:, 2]
+    bins = ((heights - heights.min()) / TOP_BIN_M).astype(int)
+    per_bin = np.bincount(bins)
+    top_bin = np.flatnonzero(per_bin >= TOP_DENSE_SHARE * per_bin.max()).max()
+    below = np.sort(heights[bins <= top_bin])
+    top = below[int(TOP_QUANTILE * (len(below) - 1))]
+    band = world[heights >= top - config.top_band_m]
+    return band, float(np.median(band[:, 2]))
+
+
+@pytest.mark.parametrize('seed', range(5))
+def test_compiled_area_steps_agree_with_plain_numpy(seed):
+    rng = np.random.default_rng(seed)
+    blocks = [block(rng, rng.uniform([0.05, 0.05], [0.35, 0.25]), rng.uniform(0.01, 0.06),
+                    rng.uniform(0.01, 0.08), int(rng.integers(50, 3000))) for _ in range(4)]
+    clutter = rng.uniform([-0.05, -0.05, -0.01], [0.45, 0.35, 0.25], (500, 3))
+    world = np.vstack(blocks + [clutter])
+    world = world[rng.permutation(len(world))]
+    config = AreaConfig()
+    area = find_correlation_area(points_from_world(world), WORLD_FROM_LEFT, config)
+    band, median = plain_numpy_area(world, config)
+    assert area.points_used == len(band)
+    np.testing.assert_allclose(np.sort(area.xyz_world, axis=0), np.sort(band, axis=0),
+                               atol=1e-12)
+    assert area.top_height == pytest.approx(median, abs=1e-12)
+    # steps 2-3 against bincount and lexsort
+    areas = split_into_areas(area, (320.0, 240.0), (300.0, 240.0))
+    u, v = area.u_left, area.v_left
+    right = u >= 0.5 * (u.min() + u.max())
+    bottom = v >= 0.5 * (v.min() + v.max())
+    labels = 2 * right + bottom
+    np.testing.assert_array_equal(areas.counts, np.bincount(labels, minlength=4))
+    for axis in range(3):
+        np.testing.assert_allclose(areas.centres[:, axis], np.bincount(
+            labels, area.xyz_world[:, axis], 4) / areas.counts, rtol=1e-12)
+    np.testing.assert_allclose(areas.centres_u_right, np.bincount(
+        labels, area.u_right, 4) / areas.counts, rtol=1e-12)
+    first_by_u = np.lexsort((*area.xyz_world.T[::-1], v, u))[0]
+    np.testing.assert_array_equal(areas.border_points[0], area.xyz_world[first_by_u])
+    np.testing.assert_allclose(areas.centre, area.xyz_world.mean(axis=0), rtol=1e-12)
