@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import enum
 import math
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -232,7 +233,10 @@ def preprocess_image(image: np.ndarray, mode: str) -> np.ndarray:
         return binary
     gx = cv2.Sobel(grey8, cv2.CV_32F, 1, 0, ksize=3)
     gy = cv2.Sobel(grey8, cv2.CV_32F, 0, 1, ksize=3)
-    magnitude = cv2.magnitude(gx, gy) * np.float32(255.0 / (4.0 * 255.0))
+    # Integer gradients: the sum of squares is exact in float32 and numpy's sqrt is correctly
+    # rounded. cv2.magnitude is not: its SIMD and scalar paths differ in the last bit, so an
+    # image's edges changed by 1 grey level with the array's address (and so did matches).
+    magnitude = np.sqrt(gx * gx + gy * gy) * np.float32(255.0 / (4.0 * 255.0))
     edges: np.ndarray = np.clip(np.rint(magnitude), 0, 255).astype(np.uint8)
     return edges
 
@@ -246,20 +250,12 @@ def _to_uint8(image: np.ndarray) -> np.ndarray:
     return clipped
 
 
-def _intensity_float32(image: np.ndarray, centre: bool) -> np.ndarray:
-    """Return the image as float32 on a 0..255 scale, shifted by -128 when `centre`.
-
-    8-bit images stay integer-valued, which keeps the kernel's window sums exact.
-    """
-    if image.dtype == np.uint8:
-        values = image.astype(np.float32)
-    elif image.dtype == np.uint16:
-        values = image.astype(np.float32) * np.float32(255.0 / 65535.0)
-    else:
-        values = image.astype(np.float32)
-    if centre:
-        values -= np.float32(128.0)
-    return values
+def _intensity_scale(image: np.ndarray, centre: bool) -> tuple[float, float]:
+    """Return (gain, shift): the kernel reads float32(pixel) * gain - shift, a 0..255 scale
+    shifted by -128 when `centre`. 8-bit images stay integer-valued, which keeps the kernel's
+    window sums exact."""
+    gain = 255.0 / 65535.0 if image.dtype == np.uint16 else 1.0
+    return gain, 128.0 if centre else 0.0
 
 
 def _check_images(left: np.ndarray, right: np.ndarray, config: MatcherConfig) -> None:
@@ -297,39 +293,115 @@ def effective_roi(config: MatcherConfig, width: int, height: int) -> tuple[int, 
 # --- window statistics ------------------------------------------------------------------------
 
 
-@numba.njit(cache=True, fastmath=True, nogil=True, parallel=True)
-def _window_statistics(sums: np.ndarray, squares: np.ndarray, count: float, zero_mean: bool,
-                       texture_threshold: float, reverse: bool, offset_out: np.ndarray,
-                       mean_out: np.ndarray, scale_out: np.ndarray,
-                       texture_out: np.ndarray) -> None:
-    """Turn window sums into the kernel's per-pixel terms (columns reversed when `reverse`).
+@numba.njit(cache=True, nogil=True)
+def _reflect(index: int, size: int) -> int:
+    """Mirror an index into 0..size-1 without repeating the edge (OpenCV's BORDER_REFLECT_101)."""
+    if index < 0:
+        return -index
+    if index >= size:
+        return 2 * (size - 1) - index
+    return index
 
-    offset = count * mean * scale, mean = window mean (0 for Eq. 7), scale = 1 / sqrt(energy)
-    with energy the sum of squared deviations (Eq. 8) or of squares (Eq. 7), 0 where the window
-    is textureless; texture = the window's standard deviation reaches the threshold.
+
+@numba.njit(cache=True, nogil=True)
+def _intensity(image: np.ndarray, row: int, column: int, gain: np.float32,
+               shift: np.float32) -> np.float32:
+    # Two float32 roundings, as numpy's astype, multiply and subtract make them.
+    return np.float32(np.float32(image[row, column]) * gain) - shift
+
+
+# No fastmath: a fused multiply-add would round the padded intensities differently.
+@numba.njit(cache=True, nogil=True, parallel=True)
+def _prepare_image(image: np.ndarray, gain: float, shift: float, radius: int, zero_mean: bool,
+                   texture_threshold: float, reverse: bool, band_count: int,
+                   padded_out: np.ndarray, offset_out: np.ndarray, mean_out: np.ndarray,
+                   scale_out: np.ndarray, texture_out: np.ndarray) -> None:
+    """Write an image's float32 intensities (rows padded by reflection) and its window terms.
+
+    Columns are stored reversed when `reverse` (the right image). Window sums come from running
+    float64 column sums, windows reflected at the image edges (as cv2.boxFilter's default);
+    per pixel: offset = count * mean * scale, mean = window mean (0 for Eq. 7), scale =
+    1 / sqrt(energy) with energy the sum of squared deviations (Eq. 8) or of squares (Eq. 7), 0
+    where the window is textureless; texture = the window's standard deviation reaches the
+    threshold. One pass over the image, in row bands matched in parallel.
     """
-    height, width = sums.shape
-    for y in numba.prange(height):
-        for x in range(width):
-            total = np.float64(sums[y, x])
-            square_total = np.float64(squares[y, x])
-            deviation = max(square_total - total * total / count, 0.0)
-            std = math.sqrt(deviation / count)
-            textured = std >= texture_threshold and std > _FLAT_STD
-            energy = deviation if zero_mean else square_total
-            mean = total / count if zero_mean else 0.0
-            scale = 1.0 / math.sqrt(energy) if textured and energy > 0.0 else 0.0
-            column = width - 1 - x if reverse else x
-            offset_out[y, column] = count * mean * scale
-            mean_out[y, column] = mean
-            scale_out[y, column] = scale
-            texture_out[y, column] = textured
+    height, width = image.shape
+    size = 2 * radius + 1
+    count = float(size * size)
+    gain32, shift32 = np.float32(gain), np.float32(shift)
+    # The window's standard deviation sqrt(deviation / count) reaches the threshold (and is not
+    # flat) where the deviation reaches this.
+    textured_energy = count * max(texture_threshold, _FLAT_STD * (1.0 + 1e-9)) ** 2
+    band_rows = (height + band_count - 1) // band_count
+    for band in numba.prange(band_count):
+        y_first = band * band_rows
+        y_stop = min(height, y_first + band_rows)
+        if y_first >= y_stop:
+            continue
+        padded_first = 0 if y_first == 0 else y_first + radius
+        padded_stop = height + 2 * radius if y_stop == height else y_stop + radius
+        for padded_row in range(padded_first, padded_stop):
+            source = _reflect(padded_row - radius, height)
+            for x in range(width):
+                column = width - 1 - x if reverse else x
+                padded_out[padded_row, column] = _intensity(image, source, x, gain32, shift32)
+        column_sum = np.zeros(width)
+        column_square = np.zeros(width)
+        window_sum = np.empty(width)
+        window_square = np.empty(width)
+        for step in range(-radius, radius + 1):
+            source = _reflect(y_first + step, height)
+            for x in range(width):
+                value = np.float64(_intensity(image, source, x, gain32, shift32))
+                column_sum[x] += value
+                column_square[x] += value * value
+        for y in range(y_first, y_stop):
+            total = 0.0
+            square_total = 0.0
+            for step in range(-radius, radius + 1):
+                total += column_sum[_reflect(step, width)]
+                square_total += column_square[_reflect(step, width)]
+            for x in range(width):  # running window sums along the row
+                window_sum[x] = total
+                window_square[x] = square_total
+                entering = _reflect(x + radius + 1, width)
+                leaving = _reflect(x - radius, width)
+                total += column_sum[entering] - column_sum[leaving]
+                square_total += column_square[entering] - column_square[leaving]
+            # The terms in a loop of their own, without branches, so that it vectorises: the
+            # square root and division dominate this kernel.
+            for x in range(width):
+                total, square_total = window_sum[x], window_square[x]
+                deviation = max(square_total - total * total / count, 0.0)
+                textured = deviation >= textured_energy
+                energy = deviation if zero_mean else square_total
+                scale = 1.0 / math.sqrt(energy) if textured and energy > 0.0 else 0.0
+                column = width - 1 - x if reverse else x
+                offset_out[y, column] = total * scale if zero_mean else 0.0
+                mean_out[y, column] = total / count if zero_mean else 0.0
+                scale_out[y, column] = scale
+                texture_out[y, column] = textured
+            if y + 1 < y_stop:
+                entering_row = _reflect(y + radius + 1, height)
+                leaving_row = _reflect(y - radius, height)
+                for x in range(width):
+                    new = np.float64(_intensity(image, entering_row, x, gain32, shift32))
+                    old = np.float64(_intensity(image, leaving_row, x, gain32, shift32))
+                    column_sum[x] += new - old
+                    column_square[x] += new * new - old * old
 
 
 # --- the kernel -------------------------------------------------------------------------------
 
+# Fast-math without 'contract' and 'reassoc': a fused multiply-add or a reordered sum rounds
+# differently in the vectorised loop and in its scalar remainder, and which lanes take which
+# path depends on the arrays' addresses: the same pair then gave scores 1 ulp apart, and a
+# tie-break or the left-right check could flip between runs. No loop here needs either flag
+# to vectorise (the sums are per lane; the only reductions are integer maxima).
+_FAST_MATH = {'nnan', 'ninf', 'nsz', 'arcp', 'afn'}
 
-@numba.njit(cache=True, fastmath=True, nogil=True)
+
+@numba.njit(cache=True, fastmath=_FAST_MATH, nogil=True)
 def _update_column(column_sums: np.ndarray, column: int, left_padded: np.ndarray,
                    right_reversed: np.ndarray, y: int, first_row: bool, radius: int,
                    min_disparity: int, disparity_range: int) -> None:
@@ -363,7 +435,7 @@ def _update_column(column_sums: np.ndarray, column: int, left_padded: np.ndarray
             sums[lane] += new_value * new_part[lane] - old_value * old_part[lane]
 
 
-@numba.njit(cache=True, fastmath=True, nogil=True)
+@numba.njit(cache=True, fastmath=_FAST_MATH, nogil=True)
 def _candidate_range(x: int, width: int, radius: int, min_disparity: int,
                      disparity_range: int) -> tuple[int, int]:
     """Return (low, high) disparity indices whose right window lies inside the image."""
@@ -372,15 +444,17 @@ def _candidate_range(x: int, width: int, radius: int, min_disparity: int,
     return low, high
 
 
-@numba.njit(cache=True, fastmath=True, nogil=True, parallel=True)
+@numba.njit(cache=True, fastmath=_FAST_MATH, nogil=True, parallel=True)
 def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: np.ndarray,
                left_offset: np.ndarray, right_mean_reversed: np.ndarray,
                right_scale_reversed: np.ndarray, texture_ok: np.ndarray, radius: int,
                min_disparity: int, disparity_range: int, x_begin: int, x_end: int,
                y_begin: int, y_end: int, out_x_begin: int, out_x_end: int,
                min_score: np.float32, uniqueness_ratio: np.float32, lr_max_diff: int,
-               subpixel: bool, band_count: int, row_step: int, disparity_out: np.ndarray,
-               score_out: np.ndarray, status_out: np.ndarray) -> None:
+               subpixel: bool, band_count: int, row_step: int, band_column_sums: np.ndarray,
+               band_row_scores: np.ndarray, band_window_sums: np.ndarray,
+               band_right_best: np.ndarray, band_best_score: np.ndarray,
+               disparity_out: np.ndarray, score_out: np.ndarray, status_out: np.ndarray) -> None:
     """Match rows y_begin..y_end-1 over columns x_begin..x_end-1 (inside r..W-1-r).
 
     Decisions are written for columns out_x_begin..out_x_end-1. Disparity index i means
@@ -389,6 +463,7 @@ def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: 
     int32 fixed point (_SCORE_ONE = 1.0): LLVM vectorises integer maximum reductions, not
     floating-point ones, and 2^-24 is finer than float32 resolves a score anyway. Only rows y
     with y % row_step == 0 are decided; the others only advance the running column sums.
+    The band_* arrays are each band's working memory (first axis: band), reused between calls.
     """
     width = texture_ok.shape[1]
     u64 = numba.uint64
@@ -402,11 +477,15 @@ def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: 
         y_stop = min(y_end, y_first + band_rows)
         if y_first >= y_stop:
             continue
-        column_sums = np.zeros((width, disparity_range), np.float32)
-        window_sums = np.zeros(disparity_range, np.float32)
-        row_scores = np.full((width, disparity_range), none, np.int32)
-        right_best = np.empty(width, np.int32)
-        best_score = np.full(width, none, np.int32)
+        column_sums = band_column_sums[band]
+        window_sums = band_window_sums[band]
+        row_scores = band_row_scores[band]
+        right_best = band_right_best[band]
+        best_score = band_best_score[band]
+        column_sums[:] = 0.0  # lanes whose right column is outside the image stay 0
+        window_sums[:] = 0.0
+        row_scores[:] = none
+        best_score[:] = none
         for y in range(y_first, y_stop):
             first_row = y == y_first
             if y % row_step != 0:
@@ -595,15 +674,17 @@ def match(left: np.ndarray, right: np.ndarray, config: MatcherConfig | None = No
     if config.preprocess != 'none':
         left = preprocess_image(left, config.preprocess)
         right = preprocess_image(right, config.preprocess)
-    zero_mean = config.method == 'zncc'
-    left_padded = cv2.copyMakeBorder(_intensity_float32(left, zero_mean), radius, radius, 0, 0,
-                                     cv2.BORDER_REFLECT_101)
-    right_padded = cv2.copyMakeBorder(_intensity_float32(right, zero_mean), radius, radius, 0,
-                                      0, cv2.BORDER_REFLECT_101)
-    left_terms = _statistics(left_padded, radius, height, config, reverse=False)
-    right_terms = _statistics(right_padded, radius, height, config, reverse=True)
-    right_reversed = np.ascontiguousarray(right_padded[:, ::-1])
-
+    # numba has no float16; any other integer or float dtype is read as it is
+    left, right = (image.astype(np.float32) if image.dtype == np.float16 else image
+                   for image in (left, right))
+    bands = max(1, min(band_count or 4 * numba.get_num_threads(), roi_height))
+    work = _workspace(height, width, radius, config.disparity_range, bands)
+    for image, padded, terms, reverse in ((left, work.left_padded, work.left_terms, False),
+                                          (right, work.right_reversed, work.right_terms, True)):
+        gain, shift = _intensity_scale(image, config.method == 'zncc')
+        _prepare_image(image, gain, shift, radius, config.method == 'zncc',
+                       float(config.texture_threshold), reverse, work.prepare_bands, padded,
+                       *terms)
     disparity = np.full((height, width), np.nan, dtype=np.float32)
     score = np.full((height, width), np.nan, dtype=np.float32)
     status = np.full((height, width), MatchStatus.OUTSIDE_ROI, dtype=np.uint8)
@@ -617,33 +698,59 @@ def match(left: np.ndarray, right: np.ndarray, config: MatcherConfig | None = No
     x_end = min(width - radius, roi_x + roi_width + reach)
     out_begin, out_end = max(radius, roi_x), min(width - radius, roi_x + roi_width)
     if out_begin < out_end:
-        bands = band_count or 4 * numba.get_num_threads()
-        bands = max(1, min(bands, roi_height))
-        _correlate(left_padded, right_reversed, left_terms[2], left_terms[0], right_terms[1],
-                   right_terms[2], left_terms[3], radius, config.min_disparity,
+        left_offset, _, left_scale, left_texture = work.left_terms
+        _, right_mean, right_scale, _ = work.right_terms
+        _correlate(work.left_padded, work.right_reversed, left_scale, left_offset, right_mean,
+                   right_scale, left_texture, radius, config.min_disparity,
                    config.disparity_range, x_begin, x_end, roi_y, roi_y + roi_height,
                    out_begin, out_end, np.float32(config.min_score),
                    np.float32(config.uniqueness_ratio), int(config.lr_check_max_diff),
-                   bool(config.subpixel), bands, int(row_step), disparity, score, status)
+                   bool(config.subpixel), bands, int(row_step), *work.band_arrays, disparity,
+                   score, status)
     return DisparityMap(disparity, score, status, (roi_x, roi_y, roi_width, roi_height), config)
 
 
-def _statistics(padded: np.ndarray, radius: int, height: int, config: MatcherConfig,
-                reverse: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Return (offset, mean, scale, texture_ok) maps of one image; see _window_statistics."""
-    size = 2 * radius + 1
-    sums = cv2.boxFilter(padded, -1, (size, size), normalize=False)[radius:radius + height]
-    squares = cv2.boxFilter(padded * padded, -1, (size, size),
-                            normalize=False)[radius:radius + height]
-    shape = sums.shape
-    offset = np.empty(shape, np.float32)
-    mean = np.empty(shape, np.float32)
-    scale = np.empty(shape, np.float32)
-    texture_ok = np.empty(shape, np.bool_)
-    _window_statistics(np.ascontiguousarray(sums), np.ascontiguousarray(squares),
-                       float(size * size), config.method == 'zncc',
-                       float(config.texture_threshold), reverse, offset, mean, scale, texture_ok)
-    return offset, mean, scale, texture_ok
+class _Workspace:
+    """The matcher's working memory for one image size and disparity range.
+
+    Kept between calls (one per thread, for the last shape matched), as StereoBM keeps its
+    buffers: a fresh page costs about 3 us to fault in on our VM, and the ~20 MB a 640x480 pair
+    needs took a quarter of the matching time when allocated per call.
+    """
+
+    def __init__(self, height: int, width: int, radius: int, disparity_range: int,
+                 bands: int) -> None:
+        padded = (height + 2 * radius, width)
+        self.left_padded = np.empty(padded, np.float32)
+        self.right_reversed = np.empty(padded, np.float32)  # columns reversed
+        # offset, mean, scale, texture_ok (see _prepare_image); the right one reversed
+        self.left_terms = self._terms(height, width)
+        self.right_terms = self._terms(height, width)
+        self.prepare_bands = max(1, min(height, 2 * numba.get_num_threads()))
+        self.band_arrays = (np.empty((bands, width, disparity_range), np.float32),
+                            np.empty((bands, width, disparity_range), np.int32),
+                            np.empty((bands, disparity_range), np.float32),
+                            np.empty((bands, width), np.int32),
+                            np.empty((bands, width), np.int32))
+
+    @staticmethod
+    def _terms(height: int, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        return (np.empty((height, width), np.float32), np.empty((height, width), np.float32),
+                np.empty((height, width), np.float32), np.empty((height, width), np.bool_))
+
+
+_workspaces = threading.local()
+
+
+def _workspace(height: int, width: int, radius: int, disparity_range: int,
+               bands: int) -> _Workspace:
+    """Return this thread's workspace for the shape, made anew when the shape changed."""
+    key = (height, width, radius, disparity_range, bands, numba.get_num_threads())
+    if getattr(_workspaces, 'key', None) != key:
+        _workspaces.work = _Workspace(height, width, radius, disparity_range, bands)
+        _workspaces.key = key
+    work: _Workspace = _workspaces.work
+    return work
 
 
 def warm_up() -> float:
