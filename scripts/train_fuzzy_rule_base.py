@@ -61,10 +61,7 @@ def main() -> None:
     template = load_rule_base(args.template)
     base_areas = tuple(int(k) for k in args.base_areas.split(','))
     start = time.perf_counter()
-    try:
-        scenes = make_training_scenes(args, config)
-    except ValueError as error:
-        parser.error(str(error))
+    scenes = make_training_scenes(parser, args, config)
     train = scenes.train
     description = (
         f'chapter structure, consequents = centre of areas {list(base_areas)} + offset fitted '

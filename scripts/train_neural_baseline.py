@@ -53,10 +53,7 @@ def main() -> None:
 
     config = AreaConfig()
     start = time.perf_counter()
-    try:
-        scenes = make_training_scenes(args, config)
-    except ValueError as error:
-        parser.error(str(error))
+    scenes = make_training_scenes(parser, args, config)
     train = scenes.train
     network = train_neural_baseline(train.features, train.targets - train.nn_base,
                                     hidden=args.hidden, iterations=args.iterations,

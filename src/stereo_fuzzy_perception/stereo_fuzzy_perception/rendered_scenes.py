@@ -17,7 +17,6 @@ for the geometric source never loads it. One source owns one pybullet connection
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
@@ -42,15 +41,8 @@ ROUND_SEGMENTS = 64
 
 def prism_of(scene_object: SceneObject) -> ConvexPrism:
     """Return the object's footprint and height as a ConvexPrism in `world` (discs: 64-gon)."""
-    if scene_object.object_type.is_round:
-        angles = np.linspace(0.0, 2.0 * math.pi, ROUND_SEGMENTS, endpoint=False)
-        local = np.stack([0.5 * scene_object.size_x_m * np.cos(angles),
-                          0.5 * scene_object.size_y_m * np.sin(angles)], axis=1)
-    else:
-        hx, hy = 0.5 * scene_object.size_x_m, 0.5 * scene_object.size_y_m
-        local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
     pose = scene_object.world_from_object()
-    xy = local @ pose[:2, :2].T + pose[:2, 3]
+    xy = scene_object.footprint(ROUND_SEGMENTS) @ pose[:2, :2].T + pose[:2, 3]
     return ConvexPrism(xy, float(scene_object.height_m))
 
 

@@ -155,15 +155,19 @@ class SceneObject:
         pose[:3, 3] = (self.x_m, self.y_m, 0.0)
         return pose
 
-    def outline_points(self, segments: int = 32) -> np.ndarray:
-        """Return (N, 3) world points on the bottom and top outlines (box corners or rims)."""
+    def footprint(self, segments: int = 32) -> np.ndarray:
+        """Return (N, 2) corners of the outline in the object frame (box corners, or a
+        `segments`-gon on the rim of a round object), counter-clockwise."""
         if self.object_type.is_round:
             angles = np.linspace(0.0, 2.0 * math.pi, segments, endpoint=False)
-            ring = np.stack([0.5 * self.size_x_m * np.cos(angles),
+            return np.stack([0.5 * self.size_x_m * np.cos(angles),
                              0.5 * self.size_y_m * np.sin(angles)], axis=1)
-        else:
-            hx, hy = 0.5 * self.size_x_m, 0.5 * self.size_y_m
-            ring = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+        hx, hy = 0.5 * self.size_x_m, 0.5 * self.size_y_m
+        return np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+
+    def outline_points(self, segments: int = 32) -> np.ndarray:
+        """Return (N, 3) world points on the bottom and top outlines (box corners or rims)."""
+        ring = self.footprint(segments)
         bottom = np.column_stack([ring, np.zeros(len(ring))])
         top = np.column_stack([ring, np.full(len(ring), self.height_m)])
         return transform_points(self.world_from_object(), np.vstack([bottom, top]))

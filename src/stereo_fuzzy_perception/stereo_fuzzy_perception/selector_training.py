@@ -232,14 +232,14 @@ class TrainingScenes:
     train: TrainingSet
 
 
-def make_training_scenes(args: argparse.Namespace, config: AreaConfig) -> TrainingScenes:
+def make_training_scenes(parser: argparse.ArgumentParser, args: argparse.Namespace,
+                         config: AreaConfig) -> TrainingScenes:
     """Make the scenes the recipe options describe, printing progress to stdout.
 
-    Raises:
-        ValueError: When training and validation would use the same seed.
+    Exits through parser.error when training and validation would use the same seed.
     """
     if args.train_seed == args.validation_seed:
-        raise ValueError('training and validation scenes must come from different seeds')
+        parser.error('training and validation scenes must come from different seeds')
     source = SCENE_SOURCES[args.source]()
     print(f'making {4 * args.per_type} training scenes (seed {args.train_seed}) and '
           f'{4 * args.validation_per_type} validation scenes (seed {args.validation_seed}) '
