@@ -32,6 +32,25 @@ OUTPUT_TOPICS = ('best_point', 'best_point/decision', 'gantry/state')
 DEMO_TOLERANCE_MM = 8.0
 
 
+# (publishing node, topic, subscribing node): the links a scene travels from bag to gantry.
+CHAIN_LINKS = (
+    ('stereo_sync_node', 'stereo/pair', 'correlation_node'),
+    ('correlation_node', 'stereo/matches', 'fuzzy_best_point_node'),
+    ('fuzzy_best_point_node', 'best_point', 'gantry_driver_node'),
+)
+
+
+def missing_links(node: object) -> list[str]:
+    """Return the links of CHAIN_LINKS that the ROS graph does not show yet, in words."""
+    missing = []
+    for publisher, topic, subscriber in CHAIN_LINKS:
+        publishers = {info.node_name for info in node.get_publishers_info_by_topic(topic)}
+        subscribers = {info.node_name for info in node.get_subscriptions_info_by_topic(topic)}
+        if publisher not in publishers or subscriber not in subscribers:
+            missing.append(f'{publisher} -> {topic} -> {subscriber}')
+    return missing
+
+
 @dataclass
 class ObjectResult:
     """The verdict on one object of the bag."""
@@ -154,10 +173,14 @@ class DemoRun:
                      self.group)
             self.lines_sent_at_start = monitor.latest_gantry_state.lines_sent
             self.start_recorder()
-            # correlation_node subscribes once its matching kernels are compiled; the monitor
-            # is the other subscriber of stereo/pair.
-            wait_for(lambda: node.count_subscribers('stereo/pair') >= 2, 120.0,
-                     'correlation_node to be ready (kernels compiled)', spin, self.group)
+            # correlation_node and fuzzy_best_point_node create their endpoints only once their
+            # numba kernels are compiled (10-30 s on a fresh checkout). A scene played before
+            # every link of the chain exists is lost at the first missing link.
+            try:
+                wait_for(lambda: not missing_links(node), 180.0,
+                         'every link of the chain (kernels compiled)', spin, self.group)
+            except TimeoutError as error:
+                raise TimeoutError(f'{error}; missing: {", ".join(missing_links(node))}') from None
             self._progress(f'playing {self.bag.name}')
             self.start_player()
             player = self.group.processes[-1]
@@ -234,7 +257,7 @@ class DemoRun:
         error_mm = float(np.linalg.norm(error) * 1000)
         passed = error_mm <= self.tolerance_mm and reached is not None
         if reached is None:
-            status = 'gantry did not reach the best point'
+            status = f'gantry did not reach the best point ({monitor.driver_summary(record)})'
         elif error_mm > self.tolerance_mm:
             status = f'error above {self.tolerance_mm} mm'
         else:

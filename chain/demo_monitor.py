@@ -56,6 +56,7 @@ class GantrySample:
     world_position: np.ndarray
     connected: bool
     lines_sent: int
+    last_rejection: str
 
 
 class DemoMonitor:
@@ -110,7 +111,7 @@ class DemoMonitor:
         self.latest_gantry_state = msg
         self.gantry.append(GantrySample(len(self.gantry), msg.state,
                                         as_array(msg.world_position), msg.connected,
-                                        int(msg.lines_sent)))
+                                        int(msg.lines_sent), msg.last_rejection))
 
     def gantry_ready(self) -> bool:
         """Return True once the driver reports a connected controller that accepts motion."""
@@ -127,3 +128,19 @@ class DemoMonitor:
                     and np.linalg.norm(sample.world_position - position) <= tolerance_m):
                 return sample
         return None
+
+    def driver_summary(self, record: SceneRecord) -> str:
+        """Say what the driver reported after this scene's best point: lines sent, states,
+        and a refusal if there was one (why a move did not happen)."""
+        since = record.gantry_index_at_best_point
+        before = self.gantry[since - 1] if since > 0 else None
+        after = self.gantry[since:]
+        if not after:
+            return 'no gantry/state report after the best point'
+        sent = after[-1].lines_sent - (before.lines_sent if before else 0)
+        states = sorted({sample.state for sample in after})
+        rejection = after[-1].last_rejection
+        refused = (f'; last refusal: {rejection}'
+                   if rejection and (before is None or rejection != before.last_rejection)
+                   else '')
+        return f'{sent} lines sent since, states {"/".join(states)}{refused}'
