@@ -39,7 +39,7 @@ class SimulatorOptions:
         reply_delay_s: Delay each ok/error reply by this wall-clock time [s].
         boot_delay_s: Time from a host opening the port to the banner [s].
         vanish_on_line: Close the pty (and TCP client) right after receiving this line,
-            counted from the start (0 = never); one-shot.
+            before answering it, counted from the start (0 = never); one-shot.
         vanish_duration_s: Time until a new pty (same link_path) appears [s].
         received_lines_log: Append every received line to this file ('' = off).
     """
@@ -224,11 +224,14 @@ class GrblSimulator:
                 self.controller.power_cycle(self.sim_time())
             self.controller.advance(self.sim_time())
             self._queue_output()
-        self._flush_output()
         if self._vanish_requested:
+            # Gone before answering the line: what the host wrote after it would be lost in a
+            # closed pty, and whether it got that far would depend on timing.
             self._vanish_requested = False
             self.options.vanish_on_line = 0
             self._vanish()
+            return
+        self._flush_output()
 
     def _check_pty_connection(self, now: float) -> None:
         if self._master is None:
