@@ -38,8 +38,9 @@ sum(f w), kept as running column sums (updated with one new and one old row) and
 sums along the row: O(1) per cell whatever the window size, with the disparity loop innermost
 and contiguous (the right image is stored with its columns reversed for that). Rows are split
 into bands matched in parallel. For 8-bit images the sums are of integers below 2^24 and
-therefore exact in float32. Working memory is kept between calls (_Workspace): allocating it
-per pair cost a quarter of the time in page faults.
+therefore exact in float32. Working memory is kept between calls (_Workspace), and so are the
+output arrays once the caller has dropped the previous result: allocating them per pair cost a
+quarter of the time in page faults.
 
 ROI ("correlation area", Fig. 2 of the chapter): only pixels inside `roi` are matched, which
 divides the work by the share of the image it covers. Preprocessing (Fig. 8): `edges` correlates
@@ -52,13 +53,18 @@ from __future__ import annotations
 
 import enum
 import math
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numba
 import numpy as np
+from numba.core import cgutils
+from numba.extending import intrinsic
+from numba.np.numpy_support import carray
 
 METHODS = ('zncc', 'plain')
 PREPROCESS_MODES = ('none', 'edges', 'binary')
@@ -292,6 +298,30 @@ def effective_roi(config: MatcherConfig, width: int, height: int) -> tuple[int, 
     return x, y, x_end - x, y_end - y
 
 
+# --- views without reference counting ---------------------------------------------------------
+
+
+@intrinsic
+def _void_pointer(typing_context: Any, address: Any) -> tuple[Any, Any]:
+    """numba intrinsic: the integer `address` as a void pointer."""
+    def codegen(context: Any, builder: Any, signature: Any, arguments: list[Any]) -> Any:
+        return builder.inttoptr(arguments[0], cgutils.voidptr_t)
+    return numba.types.voidptr(address), codegen
+
+
+@numba.njit(inline='always')
+def _unowned(array: np.ndarray) -> np.ndarray:
+    """Return a view of `array` that numba does not reference-count.
+
+    Every view numba makes of an owned array increments and decrements its reference count
+    atomically; the kernel below makes several per pixel, which cost about 7 % of the
+    matching time. Views of an unowned array carry no owner, so they cost nothing. Only for
+    arrays that outlive every use of the view: here, the kernel's own arguments.
+    """
+    address: Any = _void_pointer(array.ctypes.data)  # type: ignore[call-arg]
+    return carray(address, array.shape, array.dtype)
+
+
 # --- window statistics ------------------------------------------------------------------------
 
 
@@ -347,29 +377,35 @@ def _prepare_image(image: np.ndarray, gain: float, shift: float, radius: int, ze
             for x in range(width):
                 column = width - 1 - x if reverse else x
                 padded_out[padded_row, column] = _intensity(image, source, x, gain32, shift32)
-        column_sum = np.zeros(width)
-        column_square = np.zeros(width)
+        # Column sums of image column x at index x + radius, with radius + 1 reflected columns
+        # on each side: the running sums along a row then need no edge test per pixel.
+        column_sum = np.zeros(width + 2 * radius + 1)
+        column_square = np.zeros(width + 2 * radius + 1)
         window_sum = np.empty(width)
         window_square = np.empty(width)
         for step in range(-radius, radius + 1):
             source = _reflect(y_first + step, height)
             for x in range(width):
                 value = np.float64(_intensity(image, source, x, gain32, shift32))
-                column_sum[x] += value
-                column_square[x] += value * value
+                column_sum[x + radius] += value
+                column_square[x + radius] += value * value
         for y in range(y_first, y_stop):
+            for index in range(-radius, 0):
+                column_sum[index + radius] = column_sum[-index + radius]
+                column_square[index + radius] = column_square[-index + radius]
+            for index in range(width, width + radius + 1):
+                column_sum[index + radius] = column_sum[2 * (width - 1) - index + radius]
+                column_square[index + radius] = column_square[2 * (width - 1) - index + radius]
             total = 0.0
             square_total = 0.0
-            for step in range(-radius, radius + 1):
-                total += column_sum[_reflect(step, width)]
-                square_total += column_square[_reflect(step, width)]
+            for index in range(0, 2 * radius + 1):
+                total += column_sum[index]
+                square_total += column_square[index]
             for x in range(width):  # running window sums along the row
                 window_sum[x] = total
                 window_square[x] = square_total
-                entering = _reflect(x + radius + 1, width)
-                leaving = _reflect(x - radius, width)
-                total += column_sum[entering] - column_sum[leaving]
-                square_total += column_square[entering] - column_square[leaving]
+                total += column_sum[x + 2 * radius + 1] - column_sum[x]
+                square_total += column_square[x + 2 * radius + 1] - column_square[x]
             # The terms in a loop of their own, without branches, so that it vectorises: the
             # square root and division dominate this kernel.
             for x in range(width):
@@ -389,8 +425,8 @@ def _prepare_image(image: np.ndarray, gain: float, shift: float, radius: int, ze
                 for x in range(width):
                     new = np.float64(_intensity(image, entering_row, x, gain32, shift32))
                     old = np.float64(_intensity(image, leaving_row, x, gain32, shift32))
-                    column_sum[x] += new - old
-                    column_square[x] += new * new - old * old
+                    column_sum[x + radius] += new - old
+                    column_square[x + radius] += new * new - old * old
 
 
 # --- the kernel -------------------------------------------------------------------------------
@@ -479,11 +515,12 @@ def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: 
         y_stop = min(y_end, y_first + band_rows)
         if y_first >= y_stop:
             continue
-        column_sums = band_column_sums[band]
-        window_sums = band_window_sums[band]
-        row_scores = band_row_scores[band]
-        right_best = band_right_best[band]
-        best_score = band_best_score[band]
+        column_sums = _unowned(band_column_sums[band])
+        window_sums = _unowned(band_window_sums[band])
+        row_scores = _unowned(band_row_scores[band])
+        right_best = _unowned(band_right_best[band])
+        best_score = _unowned(band_best_score[band])
+        right_rows = _unowned(right_reversed)
         column_sums[:] = 0.0  # lanes whose right column is outside the image stay 0
         window_sums[:] = 0.0
         row_scores[:] = none
@@ -494,21 +531,21 @@ def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: 
                 # No point is taken from this row: bring the column sums to it, score nothing
                 # (a third of a decided row's work).
                 for column in range(x_begin - radius, x_end + radius):
-                    _update_column(column_sums, column, left_padded, right_reversed, y,
+                    _update_column(column_sums, column, left_padded, right_rows, y,
                                    first_row, radius, min_disparity, disparity_range)
                 continue
             for column in range(width):
                 right_best[column] = none
             if first_row:
                 for column in range(x_begin - radius, x_end + radius):
-                    _update_column(column_sums, column, left_padded, right_reversed, y, True,
+                    _update_column(column_sums, column, left_padded, right_rows, y, True,
                                    radius, min_disparity, disparity_range)
             else:
                 for column in range(x_begin - radius, x_begin + radius):
-                    _update_column(column_sums, column, left_padded, right_reversed, y, False,
+                    _update_column(column_sums, column, left_padded, right_rows, y, False,
                                    radius, min_disparity, disparity_range)
-            means = right_mean_reversed[y]
-            scales = right_scale_reversed[y]
+            means = _unowned(right_mean_reversed[y])
+            scales = _unowned(right_scale_reversed[y])
             best = right_best
             for x in range(x_begin, x_end):
                 newest = x + radius
@@ -524,8 +561,8 @@ def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: 
                     removed = column_sums[x - radius - 1]
                     new_value = left_padded[y + 2 * radius, newest]
                     old_value = left_padded[y - 1, newest]
-                    new_row = right_reversed[y + 2 * radius]
-                    old_row = right_reversed[y - 1]
+                    new_row = right_rows[y + 2 * radius]
+                    old_row = right_rows[y - 1]
                     start = u64(width - 1 - newest + min_disparity)
                     base = u64(width - 1 - x + min_disparity)
                     # Slices starting at the first lane: LLVM then sees plain unit-stride
@@ -552,7 +589,7 @@ def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: 
                     best_score[x] = peak
                     continue
                 if not first_row:
-                    _update_column(column_sums, newest, left_padded, right_reversed, y, False,
+                    _update_column(column_sums, newest, left_padded, right_rows, y, False,
                                    radius, min_disparity, disparity_range)
                 if x == x_begin:
                     for index in range(disparity_range):
@@ -687,9 +724,10 @@ def match(left: np.ndarray, right: np.ndarray, config: MatcherConfig | None = No
         _prepare_image(image, gain, shift, radius, config.method == 'zncc',
                        float(config.texture_threshold), reverse, work.prepare_bands, padded,
                        *terms)
-    disparity = np.full((height, width), np.nan, dtype=np.float32)
-    score = np.full((height, width), np.nan, dtype=np.float32)
-    status = np.full((height, width), MatchStatus.OUTSIDE_ROI, dtype=np.uint8)
+    disparity, score, status = work.outputs()
+    disparity.fill(np.nan)
+    score.fill(np.nan)
+    status.fill(MatchStatus.OUTSIDE_ROI)
     status[roi_y:roi_y + roi_height, roi_x:roi_x + roi_width] = MatchStatus.NO_CANDIDATE
     skipped = np.arange(height) % row_step != 0
     skipped[:roi_y] = skipped[roi_y + roi_height:] = False
@@ -729,11 +767,28 @@ class _Workspace:
         self.left_terms = self._terms(height, width)
         self.right_terms = self._terms(height, width)
         self.prepare_bands = max(1, min(height, 2 * numba.get_num_threads()))
+        self._outputs: list[np.ndarray] = []
         self.band_arrays = (np.empty((bands, width, disparity_range), np.float32),
                             np.empty((bands, width, disparity_range), np.int32),
                             np.empty((bands, disparity_range), np.float32),
                             np.empty((bands, width), np.int32),
                             np.empty((bands, width), np.int32))
+
+    def outputs(self) -> list[np.ndarray]:
+        """Return the (disparity, score, status) arrays for the next result.
+
+        The previous result's arrays are reused when nothing but this workspace refers to them
+        any more (the caller dropped that result, and no view of them is alive): a node or a
+        benchmark matching pair after pair then never faults in fresh pages for its outputs.
+        """
+        # 2 = the list's reference and getrefcount's argument: nobody else holds the array
+        held = [sys.getrefcount(self._outputs[index]) > 2 for index in range(len(self._outputs))]
+        if not self._outputs or any(held):
+            height, width = self.left_terms[0].shape
+            self._outputs = [np.empty((height, width), np.float32),
+                             np.empty((height, width), np.float32),
+                             np.empty((height, width), np.uint8)]
+        return list(self._outputs)
 
     @staticmethod
     def _terms(height: int, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

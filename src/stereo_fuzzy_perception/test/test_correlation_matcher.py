@@ -260,6 +260,22 @@ def test_the_same_pair_gives_the_same_result_after_other_pairs():
     np.testing.assert_array_equal(again.score, first.score)
 
 
+def test_a_result_or_a_view_of_it_that_the_caller_keeps_is_never_overwritten():
+    # the output arrays are recycled only once nothing but the matcher refers to them
+    left, right = shifted_pair(texture(60, 100, seed=16), 5.0)
+    config = MatcherConfig(window_size=7, disparity_range=16)
+    kept = match(left, right, config)
+    kept_copy = kept.disparity.copy(), kept.score.copy(), kept.status.copy()
+    status_view = match(left, right, config).status[10:20]
+    view_copy = status_view.copy()
+    other_left, other_right = shifted_pair(texture(60, 100, seed=17), 9.0)
+    for _ in range(3):
+        match(other_left, other_right, config)
+    for array, copy in zip((kept.disparity, kept.score, kept.status), kept_copy, strict=True):
+        np.testing.assert_array_equal(array, copy)
+    np.testing.assert_array_equal(status_view, view_copy)
+
+
 @pytest.mark.parametrize(('changes', 'expected'), [
     ({'window_size': 8}, 'odd'),
     ({'window_size': 33}, 'window_size'),
