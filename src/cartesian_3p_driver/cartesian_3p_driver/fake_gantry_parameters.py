@@ -50,7 +50,8 @@ PARAMETERS = [
     ParameterSpec('alarm_code', 1, 'Fault injection: the ALARM:N raised (1 = hard limit)',
                   minimum=1, maximum=12),
     ParameterSpec('vanish_on_line', 0, 'Fault injection: close the pty right after receiving '
-                  'the n-th line, before answering it (0 = never; once)', minimum=0, maximum=1000000),
+                  'the n-th line, before answering it (0 = never; once)', minimum=0,
+                  maximum=1000000),
     ParameterSpec('vanish_duration_s', 1.0, 'Fault injection: time until the pty comes back '
                   'at the same link_path [s]', minimum=0.0, maximum=60.0),
 ]
