@@ -11,7 +11,9 @@
 2. Robustness: the same with the right image's brightness changed (gain 1.3, offset +20,
    clipped): Eq. 8 against Eq. 7 (plain) and StereoBM.
 3. Speed: ms per 640x480 pair, 64 disparities, 9x9 window, against StereoBM on the same images
-   in the same process (median of --repeats runs in 3 rounds, as a ratio), the numba compile
+   in the same process (median of --repeats runs in 3 rounds, as a ratio; with every thread,
+   then with one thread each, so that the work per pair shows apart from how each method
+   scales on the machine's cores), the numba compile
    and cache-load cost (in fresh processes), and the whole pipeline: rectify + match +
    triangulate + StereoMatches packing (packing only when the ROS workspace is sourced).
 
@@ -208,9 +210,39 @@ def speed_section(data_dir: Path, repeats: int) -> str:
 
     runners['pipeline: rectify + match + triangulate' + (' + pack' if packing else '')] = (
         whole_pipeline)
-    # Rounds of consecutive runs per method, one untimed run first: calling numba's and
-    # OpenCV's thread pools alternately makes each wait for the other's spinning workers,
-    # which neither meets in a node that runs one matcher.
+    samples = timed_rounds(runners, repeats)
+    lines = speed_table(f'method (640x480, 64 disparities, {_threads()} threads)', samples,
+                        'OpenCV StereoBM (block 9)')
+    # One thread each: the work per pair, apart from how each scales on this machine's cores
+    # (on this VM our kernel's second thread gains 1.2-1.9x with the minute, StereoBM's ~1.5x).
+    single = timed_rounds_on_one_thread({
+        'stereo-fuzzy ZNCC (Eq. 8)': runners['stereo-fuzzy ZNCC (Eq. 8)'],
+        'OpenCV StereoBM (block 9)': runners['OpenCV StereoBM (block 9)'],
+    }, repeats)
+    lines.append('')
+    lines.extend(speed_table('one thread each', single, 'OpenCV StereoBM (block 9)'))
+    gains = ', '.join(
+        f'{name} {np.median(single[name]) / np.median(samples[name]):.2f}x' for name in single)
+    lines.append('')
+    lines.append(f'Gain from 1 to {_threads()} threads: {gains}.')
+    cold, cached = kernel_start_cost()
+    lines.append('')
+    lines.append(f'numba kernels: cold compile {cold:.1f} s, load from cache {cached:.2f} s '
+                 f'(fresh processes); first call in this process {first_call:.2f} s; '
+                 f'{_threads()} threads. Not counted above.')
+    valid = match(left, right, config).valid.mean()
+    lines.append(f'Share of valid pixels on the speed pair: {100 * valid:.1f} %.')
+    return '\n'.join(lines)
+
+
+def timed_rounds(runners: dict[str, Callable[[], object]],
+                 repeats: int) -> dict[str, list[float]]:
+    """Return each runner's timed runs [ms]: 3 rounds, each one untimed run then repeats / 3.
+
+    Rounds of consecutive runs per method: calling numba's and OpenCV's thread pools
+    alternately makes each wait for the other's spinning workers, which neither meets in a node
+    that runs one matcher.
+    """
     samples: dict[str, list[float]] = {name: [] for name in runners}
     rounds = 3
     for _ in range(rounds):
@@ -220,20 +252,33 @@ def speed_section(data_dir: Path, repeats: int) -> str:
                 start = time.perf_counter()
                 run()
                 samples[name].append(1e3 * (time.perf_counter() - start))
-    bm_median = float(np.median(samples['OpenCV StereoBM (block 9)']))
-    lines = ['| method (640x480, 64 disparities) | median [ms] | min [ms] | / StereoBM |',
-             '|---|---|---|---|']
+    return samples
+
+
+def timed_rounds_on_one_thread(runners: dict[str, Callable[[], object]],
+                               repeats: int) -> dict[str, list[float]]:
+    """timed_rounds with numba and OpenCV limited to one thread, restored afterwards."""
+    import numba
+
+    numba_threads, opencv_threads = numba.get_num_threads(), cv2.getNumThreads()
+    numba.set_num_threads(1)
+    cv2.setNumThreads(1)
+    try:
+        return timed_rounds(runners, repeats)
+    finally:
+        numba.set_num_threads(numba_threads)
+        cv2.setNumThreads(opencv_threads)
+
+
+def speed_table(title: str, samples: dict[str, list[float]], reference: str) -> list[str]:
+    """Markdown rows: median and fastest run [ms] of each method and its ratio to reference."""
+    reference_median = float(np.median(samples[reference]))
+    lines = [f'| {title} | median [ms] | min [ms] | / StereoBM |', '|---|---|---|---|']
     for name, values in samples.items():
         median = float(np.median(values))
-        lines.append(f'| {name} | {median:.1f} | {min(values):.1f} | {median / bm_median:.2f} |')
-    cold, cached = kernel_start_cost()
-    lines.append('')
-    lines.append(f'numba kernels: cold compile {cold:.1f} s, load from cache {cached:.2f} s '
-                 f'(fresh processes); first call in this process {first_call:.2f} s; '
-                 f'{_threads()} threads. Not counted above.')
-    valid = match(left, right, config).valid.mean()
-    lines.append(f'Share of valid pixels on the speed pair: {100 * valid:.1f} %.')
-    return '\n'.join(lines)
+        lines.append(f'| {name} | {median:.1f} | {min(values):.1f} | '
+                     f'{median / reference_median:.2f} |')
+    return lines
 
 
 def _threads() -> int:
