@@ -13,9 +13,9 @@
 3. Speed: ms per 640x480 pair, 64 disparities, 9x9 window, against StereoBM on the same images
    in the same process (median of --repeats runs in 3 rounds, as a ratio; with every thread,
    then with one thread each, so that the work per pair shows apart from how each method
-   scales on the machine's cores), the numba compile
-   and cache-load cost (in fresh processes), and the whole pipeline: rectify + match +
-   triangulate + StereoMatches packing (packing only when the ROS workspace is sourced).
+   scales on the machine's cores), the numba compile and cache-load cost (in fresh
+   processes), and the whole pipeline: rectify + match + triangulate + StereoMatches packing
+   (packing only when the ROS workspace is sourced).
 
 Markdown tables go to stdout. Needs numpy, OpenCV and numba; imports the package from src/.
 """
@@ -213,8 +213,8 @@ def speed_section(data_dir: Path, repeats: int) -> str:
     samples = timed_rounds(runners, repeats)
     lines = speed_table(f'method (640x480, 64 disparities, {_threads()} threads)', samples,
                         'OpenCV StereoBM (block 9)')
-    # One thread each: the work per pair, apart from how each scales on this machine's cores
-    # (on this VM our kernel's second thread gains 1.2-1.9x with the minute, StereoBM's ~1.5x).
+    # One thread each: the work per pair, apart from how each method scales on this machine's
+    # cores (which on a shared VM changes from one minute to the next; README has the figures).
     single = timed_rounds_on_one_thread({
         'stereo-fuzzy ZNCC (Eq. 8)': runners['stereo-fuzzy ZNCC (Eq. 8)'],
         'OpenCV StereoBM (block 9)': runners['OpenCV StereoBM (block 9)'],
