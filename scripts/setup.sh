@@ -48,11 +48,11 @@ else
 fi
 
 # --- 2. colcon build -------------------------------------------------------------------------
-# Rebuild when anything colcon installs changes. Python sources are symlinked by
-# --symlink-install, so editing a .py file needs no rebuild.
+# Rebuild when anything colcon installs or compiles changes (the matcher's C kernel included).
+# Python sources are symlinked by --symlink-install, so editing a .py file needs no rebuild.
 build_inputs=$(cd "$root/src" && find . -type f \( -name package.xml -o -name setup.py \
   -o -name setup.cfg -o -name CMakeLists.txt -o -name '*.msg' -o -name '*.action' \
-  -o -name '*.srv' -o -path '*/resource/*' -o -path '*/config/*' \) -newer /dev/null | sort)
+  -o -name '*.srv' -o -name '*.c' -o -path '*/resource/*' -o -path '*/config/*' \) -newer /dev/null | sort)
 build_digest=$( (cd "$root/src" && echo "$build_inputs" && cat $build_inputs; echo "$requirements_digest") \
   | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$workspace/install/.build.sha256" 2>/dev/null)" != "$build_digest" ]; then

@@ -51,7 +51,9 @@ ROS-free: numpy, OpenCV and numba only.
 
 from __future__ import annotations
 
+import ctypes
 import enum
+import importlib.util
 import math
 import sys
 import threading
@@ -62,9 +64,9 @@ from typing import Any
 import cv2
 import numba
 import numpy as np
+from llvmlite import binding as llvm_binding
 from numba.core import cgutils
 from numba.extending import intrinsic
-from numba.np.numpy_support import carray
 
 METHODS = ('zncc', 'plain')
 PREPROCESS_MODES = ('none', 'edges', 'binary')
@@ -298,7 +300,31 @@ def effective_roi(config: MatcherConfig, width: int, height: int) -> tuple[int, 
     return x, y, x_end - x, y_end - y
 
 
-# --- views without reference counting ---------------------------------------------------------
+# --- the C kernel -----------------------------------------------------------------------------
+
+
+_KERNEL_SYMBOL = 'stereo_fuzzy_correlate_band'
+
+
+def _load_band_kernel() -> None:
+    """Make the C kernel, built by colcon from correlation_band.c, callable from numba.
+
+    The kernel is known to numba by symbol name rather than as a ctypes object, so that the
+    numba functions calling it can be cached on disk like the others.
+    """
+    module = f'{__package__}._correlation_band'
+    spec = importlib.util.find_spec(module)
+    if spec is None or spec.origin is None:
+        raise ImportError(f'{module} (the matcher kernel, correlation_band.c) is not built: run '
+                          'scripts/setup.sh, or colcon build in ros2_ws')
+    address = ctypes.cast(getattr(ctypes.CDLL(spec.origin), _KERNEL_SYMBOL), ctypes.c_void_p)
+    llvm_binding.add_symbol(_KERNEL_SYMBOL, address.value)
+
+
+_load_band_kernel()
+_POINTER, _I64, _F32 = numba.types.voidptr, numba.types.int64, numba.types.float32
+_correlate_band: Any = numba.types.ExternalFunction(_KERNEL_SYMBOL, numba.types.void(
+    *[_POINTER] * 7, *[_I64] * 10, _F32, _F32, *[_I64] * 3, _F32, *[_POINTER] * 8))
 
 
 @intrinsic
@@ -310,16 +336,9 @@ def _void_pointer(typing_context: Any, address: Any) -> tuple[Any, Any]:
 
 
 @numba.njit(inline='always')
-def _unowned(array: np.ndarray) -> np.ndarray:
-    """Return a view of `array` that numba does not reference-count.
-
-    Every view numba makes of an owned array increments and decrements its reference count
-    atomically; the kernel below makes several per pixel, which cost about 7 % of the
-    matching time. Views of an unowned array carry no owner, so they cost nothing. Only for
-    arrays that outlive every use of the view: here, the kernel's own arguments.
-    """
-    address: Any = _void_pointer(array.ctypes.data)  # type: ignore[call-arg]
-    return carray(address, array.shape, array.dtype)
+def _data(array: np.ndarray) -> Any:
+    """Return the address of a C-contiguous array's first element, as the C kernel takes it."""
+    return _void_pointer(array.ctypes.data)  # type: ignore[call-arg]
 
 
 # --- window statistics ------------------------------------------------------------------------
@@ -431,248 +450,48 @@ def _prepare_image(image: np.ndarray, gain: float, shift: float, radius: int, ze
 
 # --- the kernel -------------------------------------------------------------------------------
 
-# Fast-math without 'contract' and 'reassoc': a fused multiply-add or a reordered sum rounds
-# differently in the vectorised loop and in its scalar remainder, and which lanes take which
-# path depends on the arrays' addresses: the same pair then gave scores 1 ulp apart, and a
-# tie-break or the left-right check could flip between runs. No loop here needs either flag
-# to vectorise (the sums are per lane; the only reductions are integer maxima).
-_FAST_MATH = {'nnan', 'ninf', 'nsz', 'arcp', 'afn'}
 
+@numba.njit(cache=True, nogil=True, parallel=True)
+def _correlate_bands(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: np.ndarray,
+                     left_offset: np.ndarray, right_mean_reversed: np.ndarray,
+                     right_scale_reversed: np.ndarray, texture_ok: np.ndarray, radius: int,
+                     min_disparity: int, disparity_range: int, x_begin: int, x_end: int,
+                     y_begin: int, y_end: int, out_x_begin: int, out_x_end: int,
+                     min_score: np.float32, uniqueness_ratio: np.float32, lr_max_diff: int,
+                     subpixel: bool, band_count: int, row_step: int,
+                     band_column_sums: np.ndarray, band_row_scores: np.ndarray,
+                     band_window_sums: np.ndarray, band_right_best: np.ndarray,
+                     band_best_score: np.ndarray, disparity_out: np.ndarray,
+                     score_out: np.ndarray, status_out: np.ndarray) -> None:
+    """Match rows y_begin..y_end-1 over columns x_begin..x_end-1 (inside r..W-1-r), in bands
+    of rows processed in parallel by the C kernel (correlation_band.c describes the arrays).
 
-@numba.njit(cache=True, fastmath=_FAST_MATH, nogil=True)
-def _update_column(column_sums: np.ndarray, column: int, left_padded: np.ndarray,
-                   right_reversed: np.ndarray, y: int, first_row: bool, radius: int,
-                   min_disparity: int, disparity_range: int) -> None:
-    """Bring the cross-term sums of `column` to window rows y-r..y+r (padded rows y..y+2r).
-
-    column_sums[column, i] = sum over the window rows of left[row, column] *
-    right[row, column - min_disparity - i], for the i whose right column is inside the image.
-    """
-    width = right_reversed.shape[1]
-    low = max(0, column - min_disparity - width + 1)
-    high = min(disparity_range - 1, column - min_disparity)
-    if low > high:
-        return
-    count = numba.uint64(high - low + 1)
-    start = width - 1 - column + min_disparity + low
-    sums = column_sums[column, low:high + 1]
-    if first_row:
-        for lane in range(numba.uint64(0), count):
-            sums[lane] = 0.0
-        for row in range(y, y + 2 * radius + 1):
-            value = left_padded[row, column]
-            right_part = right_reversed[row, start:start + count]
-            for lane in range(numba.uint64(0), count):
-                sums[lane] += value * right_part[lane]
-    else:
-        new_value = left_padded[y + 2 * radius, column]
-        old_value = left_padded[y - 1, column]
-        new_part = right_reversed[y + 2 * radius, start:start + count]
-        old_part = right_reversed[y - 1, start:start + count]
-        for lane in range(numba.uint64(0), count):
-            sums[lane] += new_value * new_part[lane] - old_value * old_part[lane]
-
-
-@numba.njit(cache=True, fastmath=_FAST_MATH, nogil=True)
-def _candidate_range(x: int, width: int, radius: int, min_disparity: int,
-                     disparity_range: int) -> tuple[int, int]:
-    """Return (low, high) disparity indices whose right window lies inside the image."""
-    low = max(0, x - min_disparity - (width - 1 - radius))
-    high = min(disparity_range - 1, x - min_disparity - radius)
-    return low, high
-
-
-@numba.njit(cache=True, fastmath=_FAST_MATH, nogil=True, parallel=True)
-def _correlate(left_padded: np.ndarray, right_reversed: np.ndarray, left_scale: np.ndarray,
-               left_offset: np.ndarray, right_mean_reversed: np.ndarray,
-               right_scale_reversed: np.ndarray, texture_ok: np.ndarray, radius: int,
-               min_disparity: int, disparity_range: int, x_begin: int, x_end: int,
-               y_begin: int, y_end: int, out_x_begin: int, out_x_end: int,
-               min_score: np.float32, uniqueness_ratio: np.float32, lr_max_diff: int,
-               subpixel: bool, band_count: int, row_step: int, band_column_sums: np.ndarray,
-               band_row_scores: np.ndarray, band_window_sums: np.ndarray,
-               band_right_best: np.ndarray, band_best_score: np.ndarray,
-               disparity_out: np.ndarray, score_out: np.ndarray, status_out: np.ndarray) -> None:
-    """Match rows y_begin..y_end-1 over columns x_begin..x_end-1 (inside r..W-1-r).
-
-    Decisions are written for columns out_x_begin..out_x_end-1. Disparity index i means
-    disparity min_disparity + i. Column-reversed right arrays are indexed by W - 1 - x_right,
-    with x_right = x - min_disparity - i, so that they are contiguous in i. Scores are kept as
-    int32 fixed point (_SCORE_ONE = 1.0): LLVM vectorises integer maximum reductions, not
-    floating-point ones, and 2^-24 is finer than float32 resolves a score anyway. Only rows y
-    with y % row_step == 0 are decided; the others only advance the running column sums.
-    The band_* arrays are each band's working memory (first axis: band), reused between calls.
+    Decisions are written for columns out_x_begin..out_x_end-1. Scores are int32 fixed point
+    (_SCORE_ONE = 1.0): integer maxima vectorise, and 2^-24 is finer than float32 resolves a
+    score anyway. Only rows y with y % row_step == 0 are decided; the others only advance the
+    running column sums. The band_* arrays are each band's working memory (first axis: band),
+    reused between calls.
     """
     width = texture_ok.shape[1]
-    u64 = numba.uint64
-    full = u64(disparity_range)
-    one = np.float32(_SCORE_ONE)
-    none = np.int32(_NO_SCORE)
     rows = y_end - y_begin
     band_rows = (rows + band_count - 1) // band_count
+    refine = 1 if subpixel else 0  # (numba cannot branch inside a call's arguments)
+    score_one = np.float32(_SCORE_ONE)
     for band in numba.prange(band_count):
         y_first = y_begin + band * band_rows
         y_stop = min(y_end, y_first + band_rows)
         if y_first >= y_stop:
             continue
-        column_sums = _unowned(band_column_sums[band])
-        window_sums = _unowned(band_window_sums[band])
-        row_scores = _unowned(band_row_scores[band])
-        right_best = _unowned(band_right_best[band])
-        best_score = _unowned(band_best_score[band])
-        right_rows = _unowned(right_reversed)
-        column_sums[:] = 0.0  # lanes whose right column is outside the image stay 0
-        window_sums[:] = 0.0
-        row_scores[:] = none
-        best_score[:] = none
-        for y in range(y_first, y_stop):
-            first_row = y == y_first
-            if y % row_step != 0:
-                # No point is taken from this row: bring the column sums to it, score nothing
-                # (a third of a decided row's work).
-                for column in range(x_begin - radius, x_end + radius):
-                    _update_column(column_sums, column, left_padded, right_rows, y,
-                                   first_row, radius, min_disparity, disparity_range)
-                continue
-            for column in range(width):
-                right_best[column] = none
-            if first_row:
-                for column in range(x_begin - radius, x_end + radius):
-                    _update_column(column_sums, column, left_padded, right_rows, y, True,
-                                   radius, min_disparity, disparity_range)
-            else:
-                for column in range(x_begin - radius, x_begin + radius):
-                    _update_column(column_sums, column, left_padded, right_rows, y, False,
-                                   radius, min_disparity, disparity_range)
-            means = _unowned(right_mean_reversed[y])
-            scales = _unowned(right_scale_reversed[y])
-            best = right_best
-            for x in range(x_begin, x_end):
-                newest = x + radius
-                scale = left_scale[y, x] * one
-                offset = left_offset[y, x] * one
-                low, high = _candidate_range(x, width, radius, min_disparity, disparity_range)
-                scores = row_scores[x]
-                peak = none
-                if not first_row and x > x_begin and low == 0 and high == disparity_range - 1:
-                    # Interior pixel, every disparity valid. Three loops rather than one: each
-                    # touches few enough arrays for LLVM's runtime alias checks, so all vectorise.
-                    added = column_sums[newest]
-                    removed = column_sums[x - radius - 1]
-                    new_value = left_padded[y + 2 * radius, newest]
-                    old_value = left_padded[y - 1, newest]
-                    new_row = right_rows[y + 2 * radius]
-                    old_row = right_rows[y - 1]
-                    start = u64(width - 1 - newest + min_disparity)
-                    base = u64(width - 1 - x + min_disparity)
-                    # Slices starting at the first lane: LLVM then sees plain unit-stride
-                    # accesses (about 25 % faster than indexing with start + lane).
-                    new_part = new_row[start:start + full]
-                    old_part = old_row[start:start + full]
-                    mean_part = means[base:base + full]
-                    scale_part = scales[base:base + full]
-                    best_part = best[base:base + full]
-                    for lane in range(u64(0), full):
-                        column_total = added[lane] + (new_value * new_part[lane]
-                                                      - old_value * old_part[lane])
-                        added[lane] = column_total
-                        window_sums[lane] += column_total - removed[lane]
-                    for lane in range(u64(0), full):
-                        score = np.int32((window_sums[lane] * scale - offset * mean_part[lane])
-                                         * scale_part[lane])
-                        scores[lane] = score
-                        peak = score if score > peak else peak
-                    for lane in range(u64(0), full):
-                        score = scores[lane]
-                        previous = best_part[lane]
-                        best_part[lane] = score if score > previous else previous
-                    best_score[x] = peak
-                    continue
-                if not first_row:
-                    _update_column(column_sums, newest, left_padded, right_rows, y, False,
-                                   radius, min_disparity, disparity_range)
-                if x == x_begin:
-                    for index in range(disparity_range):
-                        window_sums[index] = 0.0
-                    for column in range(x - radius, newest + 1):
-                        sums = column_sums[column]
-                        for index in range(disparity_range):
-                            window_sums[index] += sums[index]
-                else:
-                    added = column_sums[newest]
-                    removed = column_sums[x - radius - 1]
-                    for index in range(disparity_range):
-                        window_sums[index] += added[index] - removed[index]
-                for index in range(disparity_range):
-                    scores[index] = none
-                if low <= high:
-                    base = width - 1 - x + min_disparity + low
-                    count = u64(high - low + 1)
-                    sums_part = window_sums[low:high + 1]
-                    scores_part = scores[low:high + 1]
-                    mean_part = means[base:base + count]
-                    scale_part = scales[base:base + count]
-                    best_part = best[base:base + count]
-                    for lane in range(u64(0), count):
-                        score = np.int32((sums_part[lane] * scale - offset * mean_part[lane])
-                                         * scale_part[lane])
-                        scores_part[lane] = score
-                        peak = score if score > peak else peak
-                        previous = best_part[lane]
-                        best_part[lane] = score if score > previous else previous
-                best_score[x] = peak
-            for x in range(out_x_begin, out_x_end):
-                peak = best_score[x]
-                if peak == none:
-                    status_out[y, x] = 2
-                    continue
-                score_out[y, x] = peak / one
-                if not texture_ok[y, x]:
-                    status_out[y, x] = 3
-                    continue
-                if peak < min_score * one:
-                    status_out[y, x] = 4
-                    continue
-                scores = row_scores[x]
-                chosen = np.int32(disparity_range)
-                for lane in range(u64(0), full):
-                    candidate = np.int32(lane) if scores[lane] >= peak else np.int32(
-                        disparity_range)
-                    chosen = candidate if candidate < chosen else chosen
-                if uniqueness_ratio > 0.0:
-                    second = none
-                    for index in range(0, chosen - 1):
-                        value = scores[index]
-                        second = value if value > second else second
-                    for index in range(chosen + 2, disparity_range):
-                        value = scores[index]
-                        second = value if value > second else second
-                    if one - second <= (one - peak) * (1.0 + uniqueness_ratio):
-                        status_out[y, x] = 5
-                        continue
-                if lr_max_diff >= 0:
-                    right_x = x - min_disparity - chosen
-                    near = none
-                    for step in range(-lr_max_diff, lr_max_diff + 1):
-                        neighbour = x + step
-                        # An int32 + int index: numba unifies both to int64; mypy cannot.
-                        index = chosen + step  # type: ignore[assignment]
-                        if x_begin <= neighbour < x_end and 0 <= index < disparity_range:
-                            value = row_scores[neighbour, index]
-                            near = value if value > near else near
-                    if near < right_best[width - 1 - right_x]:
-                        status_out[y, x] = 6
-                        continue
-                offset_px = 0.0
-                if subpixel and 0 < chosen < disparity_range - 1:
-                    below = scores[chosen - 1]
-                    above = scores[chosen + 1]
-                    if below != none and above != none:
-                        curvature = np.float64(below) + np.float64(above) - 2.0 * peak
-                        if curvature < 0.0:
-                            offset_px = min(0.5, max(-0.5, 0.5 * (below - above) / curvature))
-                status_out[y, x] = 0
-                disparity_out[y, x] = min_disparity + chosen + offset_px
+        _correlate_band(
+            _data(left_padded), _data(right_reversed), _data(left_scale), _data(left_offset),
+            _data(right_mean_reversed), _data(right_scale_reversed), _data(texture_ok), width,
+            radius, min_disparity, disparity_range, x_begin, x_end, y_first, y_stop,
+            out_x_begin, out_x_end, min_score, uniqueness_ratio, lr_max_diff,
+            refine, row_step, score_one,
+            _data(band_column_sums[band]), _data(band_row_scores[band]),
+            _data(band_window_sums[band]), _data(band_right_best[band]),
+            _data(band_best_score[band]), _data(disparity_out), _data(score_out),
+            _data(status_out))
 
 
 # --- public API -------------------------------------------------------------------------------
@@ -740,13 +559,13 @@ def match(left: np.ndarray, right: np.ndarray, config: MatcherConfig | None = No
     if out_begin < out_end:
         left_offset, _, left_scale, left_texture = work.left_terms
         _, right_mean, right_scale, _ = work.right_terms
-        _correlate(work.left_padded, work.right_reversed, left_scale, left_offset, right_mean,
-                   right_scale, left_texture, radius, config.min_disparity,
-                   config.disparity_range, x_begin, x_end, roi_y, roi_y + roi_height,
-                   out_begin, out_end, np.float32(config.min_score),
-                   np.float32(config.uniqueness_ratio), int(config.lr_check_max_diff),
-                   bool(config.subpixel), bands, int(row_step), *work.band_arrays, disparity,
-                   score, status)
+        _correlate_bands(work.left_padded, work.right_reversed, left_scale, left_offset,
+                         right_mean, right_scale, left_texture, radius, config.min_disparity,
+                         config.disparity_range, x_begin, x_end, roi_y, roi_y + roi_height,
+                         out_begin, out_end, np.float32(config.min_score),
+                         np.float32(config.uniqueness_ratio), int(config.lr_check_max_diff),
+                         bool(config.subpixel), bands, int(row_step), *work.band_arrays,
+                         disparity, score, status)
     return DisparityMap(disparity, score, status, (roi_x, roi_y, roi_width, roi_height), config)
 
 
