@@ -32,21 +32,22 @@ that keep its right window inside the image (StereoBM instead gives up on the le
 min_disparity + disparity_range columns); the left-right check rejects it when its true partner
 has left the image.
 
-The speed comes from numba kernels: window means and variances come from one pass of running
-sums per image (_prepare_image), so each (pixel, disparity) cell needs only the cross term
-sum(f w), kept as running column sums (updated with one new and one old row) and running window
-sums along the row: O(1) per cell whatever the window size, with the disparity loop innermost
-and contiguous (the right image is stored with its columns reversed for that). Rows are split
-into bands matched in parallel. For 8-bit images the sums are of integers below 2^24 and
-therefore exact in float32. Working memory is kept between calls (_Workspace), and so are the
-output arrays once the caller has dropped the previous result: allocating them per pair cost a
-quarter of the time in page faults.
+The speed comes from two kernels: window means and variances come from one numba pass of
+running sums per image (_prepare_image), so each (pixel, disparity) cell needs only the cross
+term sum(f w), kept as running column sums (updated with one new and one old row) and running
+window sums along the row: O(1) per cell whatever the window size. That loop is C
+(correlation_band.c, built by colcon), with the disparity loop innermost and contiguous (the
+right image is stored with its columns reversed for that); numba runs it over bands of rows in
+parallel. For 8-bit images the sums are of integers below 2^24 and therefore exact in float32.
+Working memory is kept between calls (_Workspace), and so are the output arrays once the caller
+has dropped the previous result: allocating them per pair cost a quarter of the time in page
+faults.
 
 ROI ("correlation area", Fig. 2 of the chapter): only pixels inside `roi` are matched, which
 divides the work by the share of the image it covers. Preprocessing (Fig. 8): `edges` correlates
 Sobel gradient magnitudes, `binary` correlates Otsu-thresholded images.
 
-ROS-free: numpy, OpenCV and numba only.
+ROS-free: numpy, OpenCV, numba and the C kernel only.
 """
 
 from __future__ import annotations
