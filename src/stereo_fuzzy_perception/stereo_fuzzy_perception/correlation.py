@@ -449,7 +449,7 @@ def _prepare_image(image: np.ndarray, gain: float, shift: float, radius: int, ze
                     column_square[x + radius] += new * new - old * old
 
 
-# --- matching: row bands in parallel, each by the C kernel -------------------------------------
+# --- matching: row bands in parallel, each by the C kernel ------------------------------------
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
