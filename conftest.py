@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parent
-for path in ('.', 'src/stereo_fuzzy_perception', 'src/cartesian_3p_driver', 'tests/support'):
+for path in ('.', 'src/stereo_fuzzy_parameters', 'src/stereo_fuzzy_perception',
+             'src/cartesian_3p_driver', 'tests/support'):
     sys.path.insert(0, str(REPO_ROOT / path))
 
 

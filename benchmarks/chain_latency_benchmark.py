@@ -97,8 +97,11 @@ class EncodedPair:
 def render_pairs(count: int) -> list[EncodedPair]:
     """Render `count` scenes (mono8, 640x480, default rig) and encode them as messages."""
     from std_msgs.msg import Header
-    from stereo_fuzzy_perception.conversions import array_to_image, calibration_to_camera_info
-    from stereo_fuzzy_perception.scene_renderer import render_scene
+    from stereo_fuzzy_perception.nodes.conversions import (
+        array_to_image,
+        calibration_to_camera_info,
+    )
+    from stereo_fuzzy_perception.simulation.scene_renderer import render_scene
 
     pairs = []
     for index in range(count):

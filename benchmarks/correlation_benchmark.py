@@ -39,13 +39,13 @@ import numpy as np
 REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT / 'src' / 'stereo_fuzzy_perception'))
 
-from stereo_fuzzy_perception.camera_model import (  # noqa: E402
+from stereo_fuzzy_perception.core.camera_model import (  # noqa: E402
     CameraCalibration,
     StereoCalibration,
 )
-from stereo_fuzzy_perception.correlation import MatcherConfig, match, warm_up  # noqa: E402
-from stereo_fuzzy_perception.rig_geometry import StereoRig  # noqa: E402
-from stereo_fuzzy_perception.stereo_matching import StereoMatchingPipeline  # noqa: E402
+from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline  # noqa: E402
+from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig, match, warm_up  # noqa: E402
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
 
 SCENES = ('tsukuba', 'venus', 'sawtooth', 'barn1', 'cones', 'teddy')
 GT_SCALE = {'tsukuba': 16, 'venus': 8, 'sawtooth': 8, 'barn1': 8, 'cones': 4, 'teddy': 4}
@@ -161,7 +161,8 @@ def kernel_start_cost() -> tuple[float, float]:
     """Return (cold compile, cached load) time of the kernels [s], each in a fresh process."""
     package_dir = str(REPO_ROOT / 'src' / 'stereo_fuzzy_perception')
     code = (f'import sys; sys.path.insert(0, {package_dir!r}); '
-            'from stereo_fuzzy_perception.correlation import warm_up; print(warm_up())')
+            'from stereo_fuzzy_perception.core.matching.window_matcher import warm_up; '
+            'print(warm_up())')
     with tempfile.TemporaryDirectory() as cache_dir:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
         times = []
@@ -291,7 +292,7 @@ def _packing_function() -> Callable | None:
     """StereoMatches packing when the ROS workspace is sourced, else None."""
     try:
         from std_msgs.msg import Header
-        from stereo_fuzzy_perception.conversions import stereo_matches_message
+        from stereo_fuzzy_perception.nodes.conversions import stereo_matches_message
     except ImportError:
         return None
 

@@ -31,15 +31,15 @@ for variable in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ.setdefault(variable, '1')  # one core
 
 import numpy as np  # noqa: E402
-from stereo_fuzzy_perception.correlation_area import AreaConfig  # noqa: E402
-from stereo_fuzzy_perception.matched_points import MatchedPoints  # noqa: E402
-from stereo_fuzzy_perception.point_selectors import SELECTORS, BestPointChooser  # noqa: E402
-from stereo_fuzzy_perception.selector_training import (  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.point_selectors import SELECTORS, BestPointChooser  # noqa: E402
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints  # noqa: E402
+from stereo_fuzzy_perception.simulation.selector_training import (  # noqa: E402
     best_point_errors,
     make_scenes,
     score_errors,
 )
-from stereo_fuzzy_perception.synthetic_scenes import (  # noqa: E402
+from stereo_fuzzy_perception.simulation.synthetic_scenes import (  # noqa: E402
     OBJECT_TYPES,
     SCENE_SOURCES,
     ConvexPrism,

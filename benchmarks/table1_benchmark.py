@@ -46,11 +46,11 @@ import yaml  # noqa: E402
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from stereo_fuzzy_perception.correlation_area import AreaConfig  # noqa: E402
-from stereo_fuzzy_perception.point_selectors import SELECTORS, BestPointChooser  # noqa: E402
-from stereo_fuzzy_perception.rendered_scenes import RenderedSceneSource  # noqa: E402
-from stereo_fuzzy_perception.selector_training import score_errors  # noqa: E402
-from stereo_fuzzy_perception.synthetic_scenes import OBJECT_TYPES  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.point_selectors import SELECTORS, BestPointChooser  # noqa: E402
+from stereo_fuzzy_perception.simulation.rendered_scenes import RenderedSceneSource  # noqa: E402
+from stereo_fuzzy_perception.simulation.selector_training import score_errors  # noqa: E402
+from stereo_fuzzy_perception.simulation.synthetic_scenes import OBJECT_TYPES  # noqa: E402
 
 SELECTOR_ORDER = ('fuzzy_chapter', 'fuzzy_fitted', 'centroid', 'max_score', 'neural_network')
 assert set(SELECTOR_ORDER) == set(SELECTORS)

@@ -12,12 +12,12 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from stereo_fuzzy_perception.conversions import (
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+from stereo_fuzzy_perception.nodes.conversions import (
     camera_info_to_calibration,
     cloud_to_matched_points,
     image_to_array,
 )
-from stereo_fuzzy_perception.rig_geometry import StereoRig
 
 RIG_FIELDS = ('baseline_m', 'alpha_deg', 'theta_deg', 'x0_m', 'y0_m', 'z0_m', 'vergence_deg')
 

@@ -15,14 +15,15 @@ import sys
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-for package_dir in ('src/stereo_fuzzy_perception', 'src/cartesian_3p_driver'):
+for package_dir in ('src/stereo_fuzzy_parameters', 'src/stereo_fuzzy_perception',
+                    'src/cartesian_3p_driver'):
     sys.path.insert(0, str(REPO_ROOT / package_dir))
 
 # node name -> module holding its PARAMETERS list
 NODE_PARAMETER_MODULES = {
-    'stereo_sync_node': 'stereo_fuzzy_perception.stereo_sync_parameters',
-    'correlation_node': 'stereo_fuzzy_perception.correlation_parameters',
-    'fuzzy_best_point_node': 'stereo_fuzzy_perception.fuzzy_best_point_parameters',
+    'stereo_sync_node': 'stereo_fuzzy_perception.nodes.stereo_sync_parameters',
+    'correlation_node': 'stereo_fuzzy_perception.nodes.correlation_parameters',
+    'fuzzy_best_point_node': 'stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters',
     'gantry_driver_node': 'cartesian_3p_driver.gantry_driver_parameters',
     'fake_gantry': 'cartesian_3p_driver.fake_gantry_parameters',
 }

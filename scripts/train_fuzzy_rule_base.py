@@ -29,14 +29,14 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'src' / 'stereo_fuzzy_perception'))
 
-from stereo_fuzzy_perception.correlation_area import AreaConfig  # noqa: E402
-from stereo_fuzzy_perception.point_selectors import BestPointChooser  # noqa: E402
-from stereo_fuzzy_perception.rule_base import (  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.rule_base import (  # noqa: E402
     data_path,
     load_rule_base,
     save_rule_base,
 )
-from stereo_fuzzy_perception.selector_training import (  # noqa: E402
+from stereo_fuzzy_perception.simulation.selector_training import (  # noqa: E402
     add_recipe_arguments,
     fit_rule_offsets,
     make_training_scenes,

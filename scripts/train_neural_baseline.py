@@ -30,11 +30,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'src' / 'stereo_fuzzy_perception'))
 
-from stereo_fuzzy_perception.correlation_area import AreaConfig  # noqa: E402
-from stereo_fuzzy_perception.neural_baseline import train_neural_baseline  # noqa: E402
-from stereo_fuzzy_perception.point_selectors import BestPointChooser  # noqa: E402
-from stereo_fuzzy_perception.rule_base import data_path  # noqa: E402
-from stereo_fuzzy_perception.selector_training import (  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.neural_baseline import train_neural_baseline  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.rule_base import data_path  # noqa: E402
+from stereo_fuzzy_perception.simulation.selector_training import (  # noqa: E402
     add_recipe_arguments,
     make_training_scenes,
     print_scores,

@@ -42,7 +42,7 @@ def dds_padded(data: bytes) -> bytes:
 
 
 def bag_messages(path: Path, topics=None) -> dict[str, list[bytes]]:
-    from stereo_fuzzy_perception.bag_io import read_messages
+    from stereo_fuzzy_perception.bag.bag_io import read_messages
 
     recorded: dict[str, list[bytes]] = defaultdict(list)
     for message in read_messages(path, topics):
@@ -57,7 +57,7 @@ class RawProbe:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile, ReliabilityPolicy
-        from stereo_fuzzy_perception.message_types import import_message_class
+        from stereo_fuzzy_perception.bag.message_types import import_message_class
 
         self.node = rclpy.create_node(name, context=context)
         self.executor = SingleThreadedExecutor(context=context)
@@ -78,7 +78,7 @@ class RawProbe:
 
 
 def scene_types() -> dict[str, str]:
-    from stereo_fuzzy_perception.scene_bag_writer import TOPICS
+    from stereo_fuzzy_perception.simulation.scene_bag_writer import TOPICS
 
     return dict(TOPICS)
 
@@ -217,7 +217,7 @@ def test_record_writes_what_was_published_with_custom_types_and_qos(
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from rclpy.serialization import deserialize_message, serialize_message
     from std_msgs.msg import String
-    from stereo_fuzzy_perception.bag_io import read_info
+    from stereo_fuzzy_perception.bag.bag_io import read_info
 
     from stereo_fuzzy_msgs.msg import FuzzyDecision
 
@@ -273,7 +273,7 @@ def test_record_stops_cleanly_on_sigint(
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.serialization import serialize_message
     from std_msgs.msg import String
-    from stereo_fuzzy_perception.bag_io import read_info
+    from stereo_fuzzy_perception.bag.bag_io import read_info
 
     node = rclpy.create_node('sigint_publisher', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)

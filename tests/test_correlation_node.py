@@ -21,7 +21,7 @@ TIMEOUT = 60.0  # [s] generous: DDS discovery, and a numba compile when its cach
 
 def camera(width: int = WIDTH, height: int = HEIGHT, tx: float = -FOCAL * BASELINE,
            k_zero: bool = False):
-    from stereo_fuzzy_perception.camera_model import CameraCalibration
+    from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 
     K = np.array([[FOCAL, 0.0, width / 2], [0.0, FOCAL, height / 2], [0.0, 0.0, 1.0]])
     P = np.hstack([K, [[tx], [0.0], [0.0]]])
@@ -42,7 +42,10 @@ def stereo_pair(stamp_sec: int = 1, encoding: str = 'mono8', right_width: int = 
                 left_k_zero: bool = False, right_tx: float = -FOCAL * BASELINE):
     from sensor_msgs.msg import Image
     from std_msgs.msg import Header
-    from stereo_fuzzy_perception.conversions import array_to_image, calibration_to_camera_info
+    from stereo_fuzzy_perception.nodes.conversions import (
+        array_to_image,
+        calibration_to_camera_info,
+    )
 
     from stereo_fuzzy_msgs.msg import StereoPair
 
@@ -71,10 +74,10 @@ class Harness:
         from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.parameter import Parameter
-        from stereo_fuzzy_perception.correlation_node import CorrelationNode
+        from stereo_fuzzy_perception.nodes import qos
+        from stereo_fuzzy_perception.nodes.correlation_node import CorrelationNode
 
         from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
-        from stereo_fuzzy_perception import qos
 
         parameters = [Parameter(name, value=value) for name, value in overrides.items()]
         self.node = CorrelationNode(context=context, parameter_overrides=parameters)
@@ -123,7 +126,7 @@ def harness(ros_context):
 
 
 def test_known_shift_gives_points_at_f_b_over_d(harness):
-    from stereo_fuzzy_perception.conversions import cloud_to_matched_points
+    from stereo_fuzzy_perception.nodes.conversions import cloud_to_matched_points
 
     rig = harness(window_size=9, disparity_range=32)
     rig.publish_and_wait_processed(stereo_pair(stamp_sec=7))
@@ -168,7 +171,7 @@ def test_bad_pair_is_dropped_reported_and_a_good_pair_still_matches(harness, bad
 
 
 def test_size_mismatch_between_images_and_their_calibration_is_named(harness):
-    from stereo_fuzzy_perception.conversions import array_to_image
+    from stereo_fuzzy_perception.nodes.conversions import array_to_image
 
     rig = harness()
     pair = stereo_pair()
@@ -200,9 +203,8 @@ def test_matcher_parameters_change_at_run_time_and_invalid_values_are_refused(ha
 
 
 def test_disparity_image_is_published_to_a_subscriber(harness):
+    from stereo_fuzzy_perception.nodes import qos
     from stereo_msgs.msg import DisparityImage
-
-    from stereo_fuzzy_perception import qos
 
     rig = harness(disparity_range=32)
     images: list = []

@@ -17,14 +17,14 @@ TIMEOUT = 30.0  # [s] generous: DDS discovery alone can take about 2 s
 
 
 def make_scene(seed: int = 3, kind: str = 'cubic_square'):
-    from stereo_fuzzy_perception.synthetic_scenes import GeometricSceneSource
+    from stereo_fuzzy_perception.simulation.synthetic_scenes import GeometricSceneSource
 
     return GeometricSceneSource().scene(np.random.default_rng(seed), kind)
 
 
 def matches_message(scene, stamp_sec: int, points=None):
     from std_msgs.msg import Header
-    from stereo_fuzzy_perception.conversions import (
+    from stereo_fuzzy_perception.nodes.conversions import (
         calibration_to_camera_info,
         matched_points_to_cloud,
     )
@@ -49,10 +49,10 @@ class Harness:
         from geometry_msgs.msg import PointStamped
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.parameter import Parameter
-        from stereo_fuzzy_perception.fuzzy_best_point_node import FuzzyBestPointNode
+        from stereo_fuzzy_perception.nodes import qos
+        from stereo_fuzzy_perception.nodes.fuzzy_best_point_node import FuzzyBestPointNode
 
         from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
-        from stereo_fuzzy_perception import qos
 
         parameters = [Parameter(name, value=value) for name, value in (overrides or {}).items()]
         self.node = FuzzyBestPointNode(context=context, parameter_overrides=parameters)
@@ -129,7 +129,7 @@ def test_known_object_gives_its_top_centre_and_a_consistent_decision(harness):
 
 
 def test_empty_cloud_gives_a_reason_and_no_best_point(harness):
-    from stereo_fuzzy_perception.matched_points import MatchedPoints
+    from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 
     scene = make_scene()
     run = harness()

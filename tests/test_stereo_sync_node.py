@@ -32,7 +32,7 @@ PACKAGE_DIR = REPO_ROOT / 'src' / 'stereo_fuzzy_perception'
 
 def calibration(width: int = WIDTH, height: int = HEIGHT, tx: float = -FOCAL * BASELINE,
                 k_zero: bool = False, frame_id: str = ''):
-    from stereo_fuzzy_perception.camera_model import CameraCalibration
+    from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 
     K = np.array([[FOCAL, 0.0, width / 2], [0.0, FOCAL, height / 2], [0.0, 0.0, 1.0]])
     P = np.hstack([K, [[tx], [0.0], [0.0]]])
@@ -55,7 +55,7 @@ def image_message(stamp_ns: int, frame_id: str, fill: int, encoding: str = 'mono
     if encoding == 'yuv422':  # not supported by the chain: build the message by hand
         return Image(header=header, width=width, height=height, encoding=encoding,
                      step=2 * width, data=bytes([fill]) * (2 * width * height))
-    from stereo_fuzzy_perception.conversions import array_to_image
+    from stereo_fuzzy_perception.nodes.conversions import array_to_image
 
     gradient = (np.arange(width * height).reshape(height, width) + fill) % 256
     return array_to_image(gradient.astype(np.uint8), encoding, header)
@@ -63,7 +63,7 @@ def image_message(stamp_ns: int, frame_id: str, fill: int, encoding: str = 'mono
 
 def info_message(stamp_ns: int, frame_id: str, camera):
     from std_msgs.msg import Header
-    from stereo_fuzzy_perception.conversions import calibration_to_camera_info
+    from stereo_fuzzy_perception.nodes.conversions import calibration_to_camera_info
 
     return calibration_to_camera_info(camera, Header(stamp=stamp_of(stamp_ns), frame_id=frame_id))
 
@@ -91,10 +91,10 @@ class SyncHarness:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.parameter import Parameter
         from sensor_msgs.msg import CameraInfo, Image
-        from stereo_fuzzy_perception.stereo_sync_node import INPUT_TOPICS, StereoSyncNode
+        from stereo_fuzzy_perception.nodes import qos
+        from stereo_fuzzy_perception.nodes.stereo_sync_node import INPUT_TOPICS, StereoSyncNode
 
         from stereo_fuzzy_msgs.msg import StereoPair
-        from stereo_fuzzy_perception import qos
 
         parameters.setdefault('input_reliability', 'reliable')
         parameters.setdefault('diagnostics_period', 0.2)
@@ -305,7 +305,7 @@ def test_images_without_camera_info_are_reported_missing(make_harness):
 
 def write_device_files(directory: Path, frames: int) -> dict[str, str]:
     """Write left_%03d.png / right_%03d.png frames and two calibration files; return parameters."""
-    from stereo_fuzzy_perception.camera_calibration_file import write_calibration_yaml
+    from stereo_fuzzy_perception.core.camera_calibration_file import write_calibration_yaml
 
     for index in range(frames):
         for side, offset in (('left', 0), ('right', 100)):
@@ -326,7 +326,7 @@ def write_device_files(directory: Path, frames: int) -> dict[str, str]:
 
 
 def test_devices_source_publishes_pairs_from_image_files(make_harness, tmp_path):
-    from stereo_fuzzy_perception.conversions import image_to_array
+    from stereo_fuzzy_perception.nodes.conversions import image_to_array
 
     parameters = write_device_files(tmp_path, frames=3)
     harness = make_harness(**parameters, loop=True, frame_rate=50.0)
@@ -358,7 +358,7 @@ def test_devices_source_stops_at_the_end_of_the_files(make_harness, tmp_path):
 
 
 def test_devices_source_drops_frames_that_do_not_fit_the_calibration(make_harness, tmp_path):
-    from stereo_fuzzy_perception.camera_calibration_file import write_calibration_yaml
+    from stereo_fuzzy_perception.core.camera_calibration_file import write_calibration_yaml
 
     parameters = write_device_files(tmp_path, frames=2)
     write_calibration_yaml(calibration(width=WIDTH * 2), 'rig/right', tmp_path / 'right.yaml')
@@ -370,7 +370,7 @@ def test_devices_source_drops_frames_that_do_not_fit_the_calibration(make_harnes
 
 def test_devices_source_without_files_refuses_to_start(ros_context):
     from rclpy.parameter import Parameter
-    from stereo_fuzzy_perception.stereo_sync_node import StereoSyncNode, StereoSyncSetupError
+    from stereo_fuzzy_perception.nodes.stereo_sync_node import StereoSyncNode, StereoSyncSetupError
 
     with pytest.raises(StereoSyncSetupError,
                        match='source=devices needs left_device, right_device'):
@@ -380,7 +380,7 @@ def test_devices_source_without_files_refuses_to_start(ros_context):
 
 def test_device_index_given_as_an_integer_is_accepted(ros_context, tmp_path):
     from rclpy.parameter import Parameter
-    from stereo_fuzzy_perception.stereo_sync_node import StereoSyncNode, StereoSyncSetupError
+    from stereo_fuzzy_perception.nodes.stereo_sync_node import StereoSyncNode, StereoSyncSetupError
 
     parameters = write_device_files(tmp_path, frames=1)
     parameters.update(left_device=97, right_device=98)  # as `-p left_device:=97` gives it
@@ -394,14 +394,14 @@ def test_device_index_given_as_an_integer_is_accepted(ros_context, tmp_path):
 
 
 def test_config_yaml_holds_the_declared_defaults():
-    from stereo_fuzzy_perception.stereo_sync_parameters import DEFAULTS
+    from stereo_fuzzy_perception.nodes.stereo_sync_parameters import DEFAULTS
 
     config = yaml.safe_load((PACKAGE_DIR / 'config' / 'stereo_sync_node.yaml').read_text())
     assert config['stereo_sync_node']['ros__parameters'] == DEFAULTS
 
 
 def test_devices_example_config_uses_declared_parameters_only():
-    from stereo_fuzzy_perception.stereo_sync_parameters import DEFAULTS
+    from stereo_fuzzy_perception.nodes.stereo_sync_parameters import DEFAULTS
 
     config = yaml.safe_load(
         (PACKAGE_DIR / 'config' / 'stereo_sync_node_devices.yaml').read_text())

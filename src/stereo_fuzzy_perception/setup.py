@@ -16,8 +16,8 @@ setup(
     package_data={package_name: ['data/*.yaml', 'data/*.npz']},
     # The matcher's C kernel (see its header comment). -ffp-contract=off: no fused multiply-add,
     # so the vectorised and the scalar loops round alike and results do not depend on the CPU.
-    ext_modules=[Extension(package_name + '._correlation_band',
-                           sources=[package_name + '/correlation_band.c'],
+    ext_modules=[Extension(package_name + '.core.matching._window_matcher_kernel',
+                           sources=[package_name + '/core/matching/window_matcher_kernel.c'],
                            extra_compile_args=['-O3', '-ffp-contract=off'])],
     install_requires=['setuptools'],
     zip_safe=False,
@@ -27,11 +27,11 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'stereo_sync_node = stereo_fuzzy_perception.stereo_sync_node:main',
-            'correlation_node = stereo_fuzzy_perception.correlation_node:main',
-            'fuzzy_best_point_node = stereo_fuzzy_perception.fuzzy_best_point_node:main',
-            'bag = stereo_fuzzy_perception.bag_tool:main',
-            'render_scenes = stereo_fuzzy_perception.scene_bag_writer:main',
+            'stereo_sync_node = stereo_fuzzy_perception.nodes.stereo_sync_node:main',
+            'correlation_node = stereo_fuzzy_perception.nodes.correlation_node:main',
+            'fuzzy_best_point_node = stereo_fuzzy_perception.nodes.fuzzy_best_point_node:main',
+            'bag = stereo_fuzzy_perception.bag.bag_tool:main',
+            'render_scenes = stereo_fuzzy_perception.simulation.scene_bag_writer:main',
         ],
     },
 )

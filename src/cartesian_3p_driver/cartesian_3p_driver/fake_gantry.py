@@ -12,12 +12,12 @@ import re
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from stereo_fuzzy_parameters.declaration import declare_parameters
+from stereo_fuzzy_parameters.spec import ParameterValue
 
 from .fake_gantry_parameters import PARAMETERS
 from .grbl_controller import ControllerSettings, FaultInjection, GrblController
 from .grbl_simulator import GrblSimulator, SimulatorOptions
-from .parameter_spec import ParameterValue
-from .ros_parameters import declare_parameters
 
 
 def faults_from(values: dict[str, ParameterValue]) -> FaultInjection:

@@ -1,6 +1,6 @@
 """Parameters of fake_gantry, the Grbl 1.1 simulator."""
 
-from .parameter_spec import ParameterSpec
+from stereo_fuzzy_parameters.spec import ParameterSpec
 
 PARAMETERS = [
     # Wiring

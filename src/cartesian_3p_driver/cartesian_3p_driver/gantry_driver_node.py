@@ -26,6 +26,8 @@ from rclpy.node import Node
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
+from stereo_fuzzy_parameters.declaration import declare_parameters
+from stereo_fuzzy_parameters.spec import ParameterValue
 
 from stereo_fuzzy_msgs.action import MoveTo
 from stereo_fuzzy_msgs.msg import GantryState
@@ -60,8 +62,6 @@ from .grbl_link import (
     MoveFinished,
     RequestFinished,
 )
-from .parameter_spec import ParameterValue
-from .ros_parameters import declare_parameters
 
 
 def motion_config_from(values: dict[str, Any]) -> MotionConfig:

@@ -1,8 +1,9 @@
 """Parameters of gantry_driver_node: the one place their names, defaults, ranges and docs live."""
 
+from stereo_fuzzy_parameters.spec import ParameterSpec
+
 from .gcode import APPROACH_STRATEGIES
 from .line_streamer import STREAMING_MODES
-from .parameter_spec import ParameterSpec
 
 NEW_TARGET_POLICIES = ('queue', 'replace')
 

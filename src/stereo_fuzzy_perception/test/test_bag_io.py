@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from stereo_fuzzy_perception.bag_io import (
+from stereo_fuzzy_perception.bag.bag_io import (
     BagError,
     BagWriter,
     absolute_topic,
@@ -18,13 +18,13 @@ from stereo_fuzzy_perception.bag_io import (
     read_info,
     read_messages,
 )
-from stereo_fuzzy_perception.message_types import (
+from stereo_fuzzy_perception.bag.message_types import (
     MessageTypeError,
     import_message_class,
     project_typestore,
     split_type_name,
 )
-from stereo_fuzzy_perception.scene_model import OBJECT_TYPES, WORKSPACE
+from stereo_fuzzy_perception.simulation.scene_model import OBJECT_TYPES, WORKSPACE
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
 BAGS = REPO_ROOT / 'bags'

@@ -5,12 +5,12 @@ import re
 import numpy as np
 import pytest
 import yaml
-from stereo_fuzzy_perception.camera_calibration_file import (
+from stereo_fuzzy_perception.core.camera_calibration_file import (
     CalibrationFileError,
     read_calibration_yaml,
     write_calibration_yaml,
 )
-from stereo_fuzzy_perception.camera_model import CameraCalibration
+from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 
 # As cameracalibrator writes it (values from a real narrow-stereo right camera, shortened).
 STANDARD_FILE = """\

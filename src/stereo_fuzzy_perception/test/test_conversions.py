@@ -7,8 +7,8 @@ pytestmark = pytest.mark.ros
 
 
 def test_image_round_trip_for_every_supported_encoding():
-    from stereo_fuzzy_perception.conversions import array_to_image, image_to_array
-    from stereo_fuzzy_perception.image_encoding import SUPPORTED_ENCODINGS
+    from stereo_fuzzy_perception.core.image_encoding import SUPPORTED_ENCODINGS
+    from stereo_fuzzy_perception.nodes.conversions import array_to_image, image_to_array
 
     rng = np.random.default_rng(1)
     for encoding, (dtype, channels) in SUPPORTED_ENCODINGS.items():
@@ -19,7 +19,7 @@ def test_image_round_trip_for_every_supported_encoding():
 
 def test_image_with_padded_rows_and_big_endian_mono16_decodes():
     from sensor_msgs.msg import Image
-    from stereo_fuzzy_perception.conversions import image_to_array
+    from stereo_fuzzy_perception.nodes.conversions import image_to_array
 
     values = np.arange(6, dtype='>u2').reshape(2, 3)
     padded = np.zeros((2, 8), dtype=np.uint8)
@@ -31,8 +31,8 @@ def test_image_with_padded_rows_and_big_endian_mono16_decodes():
 
 def test_unsupported_encoding_and_short_buffer_are_named():
     from sensor_msgs.msg import Image
-    from stereo_fuzzy_perception.conversions import image_to_array
-    from stereo_fuzzy_perception.image_encoding import ImageEncodingError
+    from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError
+    from stereo_fuzzy_perception.nodes.conversions import image_to_array
 
     with pytest.raises(ImageEncodingError, match='yuv422'):
         image_to_array(Image(height=2, width=2, encoding='yuv422', step=4, data=b'\0' * 8))
@@ -42,11 +42,11 @@ def test_unsupported_encoding_and_short_buffer_are_named():
 
 def test_matched_points_round_trip_through_point_cloud():
     from std_msgs.msg import Header
-    from stereo_fuzzy_perception.conversions import (
+    from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+    from stereo_fuzzy_perception.nodes.conversions import (
         cloud_to_matched_points,
         matched_points_to_cloud,
     )
-    from stereo_fuzzy_perception.matched_points import MatchedPoints
 
     rng = np.random.default_rng(2)
     points = MatchedPoints(rng.normal(size=(10, 3)), rng.uniform(0, 640, 10),
@@ -58,8 +58,8 @@ def test_matched_points_round_trip_through_point_cloud():
 
 
 def test_camera_info_round_trip():
-    from stereo_fuzzy_perception.camera_model import CameraCalibration
-    from stereo_fuzzy_perception.conversions import (
+    from stereo_fuzzy_perception.core.camera_model import CameraCalibration
+    from stereo_fuzzy_perception.nodes.conversions import (
         calibration_to_camera_info,
         camera_info_to_calibration,
     )

@@ -5,20 +5,20 @@ import math
 import cv2
 import numpy as np
 import pytest
-from stereo_fuzzy_perception.camera_model import (
+from stereo_fuzzy_perception.core.camera_model import (
     CalibrationError,
     CameraCalibration,
     StereoCalibration,
 )
-from stereo_fuzzy_perception.correlation import MatcherConfig
-from stereo_fuzzy_perception.rectification import (
+from stereo_fuzzy_perception.core.matching.rectification import (
     RectificationError,
     StereoRectifier,
     rectified_stereo,
 )
-from stereo_fuzzy_perception.rig_geometry import StereoRig, rotation_y, transform_points
-from stereo_fuzzy_perception.stereo_matching import StereoMatchingPipeline
-from stereo_fuzzy_perception.triangulation import depth_from_disparity, triangulate
+from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
+from stereo_fuzzy_perception.core.matching.triangulation import depth_from_disparity, triangulate
+from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig, rotation_y, transform_points
 
 WIDTH, HEIGHT = 320, 240
 K = np.array([[300.0, 0.0, 160.0], [0.0, 300.0, 120.0], [0.0, 0.0, 1.0]])

@@ -29,7 +29,7 @@ def test_readme_parameter_table_matches_the_specs():
 
 
 def test_config_file_holds_every_declared_default():
-    from stereo_fuzzy_perception.fuzzy_best_point_parameters import PARAMETERS
+    from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import PARAMETERS
 
     config = yaml.safe_load((PACKAGE_DIR / 'config' / 'fuzzy_best_point_node.yaml').read_text())
     values = config['fuzzy_best_point_node']['ros__parameters']

@@ -4,7 +4,7 @@ import copy
 
 import pytest
 import yaml
-from stereo_fuzzy_perception.rule_base import (
+from stereo_fuzzy_perception.core.best_point.rule_base import (
     RuleBaseError,
     load_rule_base,
     packaged_rule_base,

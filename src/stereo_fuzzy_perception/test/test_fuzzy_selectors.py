@@ -5,20 +5,20 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import nnls
-from stereo_fuzzy_perception.correlation_area import (
+from stereo_fuzzy_perception.core.best_point.correlation_area import (
     DEGENERATE_AREA,
     NO_POINTS,
     STATUS_OK,
     AreaConfig,
 )
-from stereo_fuzzy_perception.matched_points import MatchedPoints
-from stereo_fuzzy_perception.point_selectors import (
+from stereo_fuzzy_perception.core.best_point.point_selectors import (
     SELECTORS,
     BestPointChooser,
     SelectorError,
 )
-from stereo_fuzzy_perception.rig_geometry import StereoRig, transform_points
-from stereo_fuzzy_perception.synthetic_scenes import OBJECT_TYPES, GeometricSceneSource
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig, transform_points
+from stereo_fuzzy_perception.simulation.synthetic_scenes import OBJECT_TYPES, GeometricSceneSource
 
 RIG = StereoRig()
 SOURCE = GeometricSceneSource(point_spacing_m=0.002)

@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
-from stereo_fuzzy_perception.rig_geometry import transform_points
-from stereo_fuzzy_perception.synthetic_scenes import (
+from stereo_fuzzy_perception.core.rig_geometry import transform_points
+from stereo_fuzzy_perception.simulation.synthetic_scenes import (
     OBJECT_TYPES,
     GeometricSceneSource,
     default_camera_matrix,

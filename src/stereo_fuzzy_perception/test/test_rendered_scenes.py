@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
-from stereo_fuzzy_perception.correlation_area import AreaConfig
-from stereo_fuzzy_perception.point_selectors import BestPointChooser
-from stereo_fuzzy_perception.rendered_scenes import RenderedSceneSource
-from stereo_fuzzy_perception.rig_geometry import transform_points
-from stereo_fuzzy_perception.synthetic_scenes import SCENE_SOURCES, SyntheticScene
+from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig
+from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser
+from stereo_fuzzy_perception.core.rig_geometry import transform_points
+from stereo_fuzzy_perception.simulation.rendered_scenes import RenderedSceneSource
+from stereo_fuzzy_perception.simulation.synthetic_scenes import SCENE_SOURCES, SyntheticScene
 
 
 @pytest.fixture(scope='module')

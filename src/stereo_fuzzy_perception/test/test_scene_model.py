@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from stereo_fuzzy_perception.rig_geometry import StereoRig
-from stereo_fuzzy_perception.scene_model import (
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+from stereo_fuzzy_perception.simulation.scene_model import (
     OBJECT_TYPES,
     SIZES,
     WORKSPACE,

@@ -6,13 +6,13 @@ Rendering takes about 0.1-0.3 s per scene, so each test renders only a few.
 import cv2
 import numpy as np
 import pytest
-from stereo_fuzzy_perception.rig_geometry import StereoRig, transform_points
-from stereo_fuzzy_perception.scene_model import (
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig, transform_points
+from stereo_fuzzy_perception.simulation.scene_model import (
     OBJECT_TYPES,
     SimulatedCamera,
     random_scene,
 )
-from stereo_fuzzy_perception.scene_renderer import (
+from stereo_fuzzy_perception.simulation.scene_renderer import (
     RenderError,
     SceneRenderer,
     SensorModel,

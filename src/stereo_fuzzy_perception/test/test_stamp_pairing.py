@@ -3,7 +3,7 @@
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from stereo_fuzzy_perception.stamp_pairing import (
+from stereo_fuzzy_perception.core.stamp_pairing import (
     StampPairingError,
     StampSynchronizer,
     seconds_to_ns,

@@ -1,0 +1,291 @@
+"""Choose the best point of a set of matched points: the fuzzy system and its baselines. ROS-free.
+
+The public entry point for nodes, the demo and benchmarks:
+
+    chooser = BestPointChooser.create('fuzzy_fitted', AreaConfig(), StereoRig())
+    decision = chooser.decide(points, left_calibration, right_calibration)
+
+Every selector shares steps 1-3 (correlation_area.py) and the height rule of step 6: the best
+point's z is the top height (median height of the correlation area) plus the selector's learned
+height offset (fitted rule base, neural network; zero otherwise). Selectors differ in x, y:
+
+- fuzzy_fitted / fuzzy_chapter: Eq. 10 over the rule base's twelve rules (fuzzy_inference.py).
+- centroid: the mean of the correlation area's points.
+- max_score: the correlation-area point with the highest correlation score.
+- neural_network: the MLP baseline's offset from the centroid (neural_baseline.py).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from stereo_fuzzy_perception.core.best_point.correlation_area import (
+    DEGENERATE_AREA,
+    NO_RULE_FIRED,
+    STATUS_OK,
+    AreaConfig,
+    CorrelationArea,
+    FourAreas,
+    find_correlation_area,
+    split_into_areas,
+)
+from stereo_fuzzy_perception.core.best_point.fuzzy_inference import infer
+from stereo_fuzzy_perception.core.best_point.neural_baseline import (
+    NeuralBaseline,
+    neural_base_point,
+    neural_features,
+)
+from stereo_fuzzy_perception.core.best_point.rule_base import (
+    RuleBase,
+    data_path,
+    load_rule_base,
+    packaged_rule_base,
+)
+from stereo_fuzzy_perception.core.camera_model import CameraCalibration
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+
+SELECTORS = ('fuzzy_fitted', 'fuzzy_chapter', 'centroid', 'max_score', 'neural_network')
+FUZZY_SELECTORS = ('fuzzy_fitted', 'fuzzy_chapter')
+NEURAL_WEIGHTS_FILE = 'neural_baseline.npz'
+
+
+class SelectorError(ValueError):
+    """A selector that cannot be built (unknown name, bad rule base or weights file)."""
+
+
+def _nan_points(count: int) -> np.ndarray:
+    return np.full((count, 3), math.nan)
+
+
+def _nan_values(count: int) -> np.ndarray:
+    return np.full(count, math.nan)
+
+
+@dataclass
+class BestPointDecision:
+    """Everything FuzzyDecision reports about one set of matched points.
+
+    Arrays indexed by area hold areas 1..4 at 0..3; rule arrays follow the rule base order.
+    NaN marks a value that could not be computed (the status says why).
+
+    Attributes:
+        selector: The selector's name.
+        rule_base: Name of the rule base ('' for non-fuzzy selectors).
+        status: STATUS_OK or a status code (correlation_area.py).
+        reason: Human-readable reason when no point was chosen.
+        best_point_world: (3,) [m] in `world`, or None.
+        best_point_camera: (3,) [m] in the camera frame of the input, or None.
+        points_in: Matches received.
+        points_valid: Finite, in the workspace box, above the surface.
+        clusters_found: Separated clusters among the valid points.
+        points_used: Points of the correlation area.
+        top_height: World z of the object's top [m].
+        border_points: (4, 3) [m] world: min u, max u, min v, max v.
+        border_distances: (6,) Eq. 9 distances [m].
+        area_centres: (4, 3) [m] world.
+        area_centres_u_left: (4,) [px].
+        area_centres_v_left: (4,) [px].
+        area_centres_u_right: (4,) [px].
+        area_point_counts: (4,).
+        d1: (4,) [px].
+        d2: (4,) [px].
+        ratio: (4,).
+        rule_names: Rule names in rule base order.
+        membership_degrees: (L,).
+        firing_strengths: (L,).
+        eq10_point: (3,) Eq. 10 point before the height rule [m], or None.
+        consequent_points: (L, 3) the rules' y_l [m].
+    """
+
+    selector: str
+    rule_base: str = ''
+    status: str = STATUS_OK
+    reason: str = ''
+    best_point_world: np.ndarray | None = None
+    best_point_camera: np.ndarray | None = None
+    points_in: int = 0
+    points_valid: int = 0
+    clusters_found: int = 0
+    points_used: int = 0
+    top_height: float = math.nan
+    border_points: np.ndarray = field(default_factory=lambda: _nan_points(4))
+    border_distances: np.ndarray = field(default_factory=lambda: _nan_values(6))
+    area_centres: np.ndarray = field(default_factory=lambda: _nan_points(4))
+    area_centres_u_left: np.ndarray = field(default_factory=lambda: _nan_values(4))
+    area_centres_v_left: np.ndarray = field(default_factory=lambda: _nan_values(4))
+    area_centres_u_right: np.ndarray = field(default_factory=lambda: _nan_values(4))
+    area_point_counts: np.ndarray = field(default_factory=lambda: np.zeros(4, dtype=np.int64))
+    d1: np.ndarray = field(default_factory=lambda: _nan_values(4))
+    d2: np.ndarray = field(default_factory=lambda: _nan_values(4))
+    ratio: np.ndarray = field(default_factory=lambda: _nan_values(4))
+    rule_names: list[str] = field(default_factory=list)
+    membership_degrees: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    firing_strengths: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    eq10_point: np.ndarray | None = None
+    consequent_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    @property
+    def has_best_point(self) -> bool:
+        """Return True when a best point was chosen."""
+        return self.best_point_world is not None
+
+    def status_text(self) -> str:
+        """Return 'ok' or 'code: reason' (the FuzzyDecision status field)."""
+        return STATUS_OK if self.status == STATUS_OK else f'{self.status}: {self.reason}'
+
+
+def principal_point(calibration: CameraCalibration) -> tuple[float, float]:
+    """Return (cx, cy) [px] of a rectified projection matrix P."""
+    return float(calibration.P[0, 2]), float(calibration.P[1, 2])
+
+
+@dataclass
+class BestPointChooser:
+    """One selector with its configuration, ready to decide on sets of matched points.
+
+    Attributes:
+        selector: One of SELECTORS.
+        area_config: How the correlation area is found.
+        world_from_camera: 4x4 pose of the matched points' frame (left optical) in `world`.
+        rule_base: The fuzzy selectors' rule base (None otherwise).
+        network: The neural_network selector's weights (None otherwise).
+    """
+
+    selector: str
+    area_config: AreaConfig
+    world_from_camera: np.ndarray
+    rule_base: RuleBase | None = None
+    network: NeuralBaseline | None = None
+
+    @classmethod
+    def create(cls, selector: str, area_config: AreaConfig, rig: StereoRig,
+               rule_base_file: str = '', weights_file: str = '') -> BestPointChooser:
+        """Build a selector, loading its rule base or weights (packaged ones by default).
+
+        Args:
+            selector: One of SELECTORS.
+            area_config: How the correlation area is found.
+            rig: The stereo rig; the left camera's pose maps points to `world`.
+            rule_base_file: Rule base for a fuzzy selector; '' for the packaged one.
+            weights_file: Network weights for neural_network; '' for the packaged ones.
+
+        Raises:
+            SelectorError: Unknown selector, or a file that cannot be used (reason included).
+        """
+        if selector not in SELECTORS:
+            raise SelectorError(f'selector {selector!r} is not one of {", ".join(SELECTORS)}')
+        reason = area_config.problem()
+        if reason:
+            raise SelectorError(reason)
+        rule_base = network = None
+        try:
+            if selector in FUZZY_SELECTORS:
+                rule_base = (load_rule_base(rule_base_file) if rule_base_file
+                             else packaged_rule_base(selector))
+            elif selector == 'neural_network':
+                network = NeuralBaseline.load(
+                    Path(weights_file) if weights_file else data_path(NEURAL_WEIGHTS_FILE))
+        except ValueError as error:
+            raise SelectorError(str(error)) from error
+        return cls(selector, area_config, rig.world_from_left_camera(), rule_base, network)
+
+    def decide(self, points: MatchedPoints, left: CameraCalibration,
+               right: CameraCalibration) -> BestPointDecision:
+        """Choose the best point of one set of matched points (steps 1-6).
+
+        Args:
+            points: Matched points in the left camera optical frame.
+            left: Rectified calibration of the left image (P gives the principal point).
+            right: Rectified calibration of the right image.
+
+        Returns:
+            The decision; when no point can be chosen, status and reason say why. Bad points
+            (NaN, infinite, outside the workspace) are ignored, never raised on.
+        """
+        decision = BestPointDecision(self.selector,
+                                     self.rule_base.name if self.rule_base else '')
+        if self.rule_base is not None:
+            decision.rule_names = [rule.name for rule in self.rule_base.rules]
+        area = find_correlation_area(points, self.world_from_camera, self.area_config)
+        decision.points_in, decision.points_valid = area.points_in, area.points_valid
+        decision.clusters_found, decision.points_used = area.clusters_found, area.points_used
+        decision.top_height = area.top_height
+        if not area.ok:
+            return self._refuse(decision, area.status, area.reason)
+        areas = split_into_areas(area, principal_point(left), principal_point(right))
+        self._record_areas(decision, areas)
+        if self.selector == 'centroid':
+            horizontal = areas.centre
+            height_offset = 0.0
+        elif self.selector == 'max_score':
+            best = np.flatnonzero(area.score == area.score.max())
+            if len(best) > 1:  # ties: the smallest (x, y, z), so input order cannot matter
+                world = area.xyz_world[best]
+                best = best[np.lexsort((world[:, 2], world[:, 1], world[:, 0]))]
+            horizontal = area.xyz_world[best[0]]
+            height_offset = 0.0
+        else:
+            if not areas.ok:
+                return self._refuse(decision, areas.status, areas.reason)
+            if self.network is not None:
+                offset = self.network.predict(neural_features(area, areas))
+                point = neural_base_point(area, areas) + offset
+                return self._choose(decision, point)
+            assert self.rule_base is not None
+            result = infer(self.rule_base, areas)
+            decision.membership_degrees = result.membership_degrees
+            decision.firing_strengths = result.firing_strengths
+            decision.consequent_points = result.consequent_points
+            if result.point is None:
+                empty = [str(k + 1) for k in range(4) if areas.counts[k] == 0]
+                return self._refuse(decision, NO_RULE_FIRED, (
+                    'no rule fired: ratios ' + ', '.join(f'{r:.3g}' for r in areas.ratio)
+                    + ' lie outside every membership function'
+                    + (f' or their areas ({", ".join(empty)}) are empty' if empty else '')))
+            decision.eq10_point = result.point
+            horizontal = result.point
+            height_offset = self.rule_base.height_offset_m
+        point = np.array([horizontal[0], horizontal[1], area.top_height + height_offset])
+        return self._choose(decision, point)
+
+    def _choose(self, decision: BestPointDecision, point: np.ndarray) -> BestPointDecision:
+        decision.best_point_world = np.asarray(point, dtype=float)
+        pose = self.world_from_camera
+        decision.best_point_camera = pose[:3, :3].T @ (decision.best_point_world - pose[:3, 3])
+        return decision
+
+    @staticmethod
+    def _refuse(decision: BestPointDecision, status: str, reason: str) -> BestPointDecision:
+        decision.status, decision.reason = status, reason
+        return decision
+
+    @staticmethod
+    def _record_areas(decision: BestPointDecision, areas: FourAreas) -> None:
+        decision.border_points = areas.border_points
+        decision.border_distances = areas.border_distances
+        decision.area_centres = areas.centres
+        decision.area_centres_u_left = areas.centres_u_left
+        decision.area_centres_v_left = areas.centres_v_left
+        decision.area_centres_u_right = areas.centres_u_right
+        decision.area_point_counts = areas.counts
+        decision.d1, decision.d2, decision.ratio = areas.d1, areas.d2, areas.ratio
+
+
+def area_features(points: MatchedPoints, left: CameraCalibration, right: CameraCalibration,
+                  world_from_camera: np.ndarray, config: AreaConfig
+                  ) -> tuple[CorrelationArea, FourAreas | None]:
+    """Return steps 1-3 for one scene (for training): the area and its four areas, if any."""
+    area = find_correlation_area(points, world_from_camera, config)
+    if not area.ok:
+        return area, None
+    areas = split_into_areas(area, principal_point(left), principal_point(right))
+    return area, (areas if areas.status == STATUS_OK else None)
+
+
+__all__ = ['DEGENERATE_AREA', 'SELECTORS', 'BestPointChooser', 'BestPointDecision',
+           'SelectorError', 'area_features', 'principal_point']

@@ -1,0 +1,152 @@
+"""Rectification of a raw stereo pair with its calibration (K, D, R, P of each camera).
+
+How the chapter's geometry maps onto this module:
+
+* Eqs. 2-6 describe the 3P robot's cameras as rotated by theta about z and alpha about x
+  (R = R_alpha R_theta, Eq. 3) and offset by z0 (Eq. 4), which makes the image coordinates
+  x1, x2 of a point non-linear functions of X, Y, Z (Eqs. 5, 6). A stereo calibration measures
+  these rotations (and the lens distortion the chapter ignores); the rectification rotation R
+  of each camera turns both onto a common image plane parallel to the baseline. Rectification
+  is therefore what undoes Eqs. 2-6: after `cv2.remap` with maps from K, D, R, P, corresponding
+  points lie on the same row and the cameras behave as the chapter's reference case
+  (alpha = theta = 0, "these equations reduce to Eq. 1").
+* Eq. 1 (Z = lambda - lambda B / (x2 + x1), with image coordinates measured from each camera's own
+  axis and the lens distance lambda) becomes, for rectified pinhole cameras with focal length f
+  [px] and disparity d = x_left - x_right [px], Z = f B / d (see triangulation.py, which also
+  rotates the point back from the rectified frame to the camera's optical frame with R^T).
+
+ROS-free: numpy and OpenCV only.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from stereo_fuzzy_perception.core.camera_model import (
+    CalibrationError,
+    CameraCalibration,
+    StereoCalibration,
+)
+
+
+class RectificationError(ValueError):
+    """Images that do not fit the calibration they come with."""
+
+
+def rectified_camera(camera: CameraCalibration) -> CameraCalibration:
+    """Return the calibration of `camera`'s rectified image.
+
+    K = P[:3, :3], no distortion, R kept as the rectification rotation (rectified frame <-
+    camera optical frame), P unchanged: what a rectified image's CameraInfo carries.
+    """
+    projection = np.asarray(camera.P, dtype=float)
+    return CameraCalibration(
+        width=camera.width, height=camera.height, K=projection[:3, :3].copy(),
+        D=np.zeros(5), R=np.asarray(camera.R, dtype=float).copy(), P=projection.copy(),
+        distortion_model='plumb_bob', frame_id=camera.frame_id)
+
+
+def rectified_stereo(calibration: StereoCalibration) -> StereoCalibration:
+    """Return the rectified calibration of both cameras (see rectified_camera)."""
+    return StereoCalibration(rectified_camera(calibration.left),
+                             rectified_camera(calibration.right))
+
+
+def is_already_rectified(camera: CameraCalibration) -> bool:
+    """Return True when remapping would not change the image (D = 0, R = I, K = P[:3, :3])."""
+    return (not np.any(camera.D) and np.allclose(camera.R, np.eye(3))
+            and np.allclose(camera.K, np.asarray(camera.P)[:3, :3]))
+
+
+@dataclass(frozen=True)
+class RectificationMaps:
+    """cv2.remap maps of one camera (None when the image is already rectified)."""
+
+    map_x: np.ndarray | None
+    map_y: np.ndarray | None
+
+    def apply(self, image: np.ndarray) -> np.ndarray:
+        """Rectify `image` (bilinear; pixels from outside the raw image are 0)."""
+        if self.map_x is None or self.map_y is None:
+            return image
+        return cv2.remap(image, self.map_x, self.map_y, cv2.INTER_LINEAR,
+                         borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
+def rectification_maps(camera: CameraCalibration) -> RectificationMaps:
+    """Compute the remap maps of one camera from K, D, R, P (fixed-point maps, fast remap).
+
+    Raises:
+        CalibrationError: When the calibration is unusable.
+    """
+    reason = camera.problem()
+    if reason:
+        raise CalibrationError(reason)
+    if is_already_rectified(camera):
+        return RectificationMaps(None, None)
+    size = (int(camera.width), int(camera.height))
+    K = np.asarray(camera.K, dtype=np.float64)
+    D = np.asarray(camera.D, dtype=np.float64)
+    R = np.asarray(camera.R, dtype=np.float64)
+    P = np.asarray(camera.P, dtype=np.float64)
+    if camera.distortion_model == 'equidistant':
+        map_x, map_y = cv2.fisheye.initUndistortRectifyMap(K, D[:4], R, P, size, cv2.CV_16SC2)
+    else:
+        map_x, map_y = cv2.initUndistortRectifyMap(K, D, R, P, size, cv2.CV_16SC2)
+    return RectificationMaps(map_x, map_y)
+
+
+class StereoRectifier:
+    """Rectify pairs, keeping the maps until the calibration changes (thread-safe)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._calibration: StereoCalibration | None = None
+        self._maps: tuple[RectificationMaps, RectificationMaps] | None = None
+        self._rectified: StereoCalibration | None = None
+        self.map_builds = 0
+
+    def _maps_for(self, calibration: StereoCalibration
+                  ) -> tuple[tuple[RectificationMaps, RectificationMaps], StereoCalibration]:
+        with self._lock:
+            cached = self._calibration
+            if (cached is None or self._maps is None or self._rectified is None
+                    or not cached.left.same_as(calibration.left)
+                    or not cached.right.same_as(calibration.right)):
+                calibration.require_valid()
+                self._maps = (rectification_maps(calibration.left),
+                              rectification_maps(calibration.right))
+                self._rectified = rectified_stereo(calibration)
+                self._calibration = calibration
+                self.map_builds += 1
+            return self._maps, self._rectified
+
+    def rectify(self, left: np.ndarray, right: np.ndarray, calibration: StereoCalibration
+                ) -> tuple[np.ndarray, np.ndarray, StereoCalibration]:
+        """Rectify a raw pair; return both rectified images and the rectified calibration.
+
+        Args:
+            left: Raw left image (H, W) or (H, W, C), any dtype cv2.remap takes.
+            right: Raw right image, same layout.
+            calibration: The pair's calibration.
+
+        Returns:
+            (left_rectified, right_rectified, rectified_calibration).
+
+        Raises:
+            CalibrationError: When the calibration is unusable.
+            RectificationError: When an image's size differs from its calibration.
+        """
+        for side, image, camera in (('left', left, calibration.left),
+                                    ('right', right, calibration.right)):
+            height, width = image.shape[:2]
+            if (width, height) != (camera.width, camera.height):
+                raise RectificationError(
+                    f'{side} image is {width}x{height} but its calibration is '
+                    f'{camera.width}x{camera.height}')
+        (left_maps, right_maps), rectified = self._maps_for(calibration)
+        return left_maps.apply(left), right_maps.apply(right), rectified

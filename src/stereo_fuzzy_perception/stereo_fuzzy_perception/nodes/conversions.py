@@ -1,0 +1,317 @@
+"""The one module that converts between ROS messages and this package's domain types.
+
+Images <-> numpy arrays (what cv_bridge does), CameraInfo <-> CameraCalibration,
+MatchedPoints <-> PointCloud2, and the fuzzy stage's BestPointDecision -> FuzzyDecision /
+PointStamped. Everything else in the
+package works on domain types.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point, PointStamped
+from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField, RegionOfInterest
+from std_msgs.msg import Header
+from stereo_msgs.msg import DisparityImage
+
+from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches, StereoPair
+from stereo_fuzzy_perception.core.camera_model import CameraCalibration, StereoCalibration
+from stereo_fuzzy_perception.core.image_encoding import (
+    SUPPORTED_ENCODINGS,
+    ImageEncodingError,
+    check_encoding,
+    to_gray,
+)
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+
+if TYPE_CHECKING:  # annotations only: nodes that never decide need not import scipy
+    from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointDecision
+    from stereo_fuzzy_perception.core.matching.window_matcher import DisparityMap, MatcherConfig
+
+# --- images ----------------------------------------------------------------------------------
+
+
+def image_to_array(msg: Image) -> np.ndarray:
+    """Decode a sensor_msgs/Image into an HxW or HxWxC array (a copy, native byte order).
+
+    Raises:
+        ImageEncodingError: For an unsupported encoding or a buffer that does not match
+            width, height and step.
+    """
+    check_image_layout(msg)
+    dtype, channels = SUPPORTED_ENCODINGS[msg.encoding]
+    row_bytes = msg.width * channels * dtype.itemsize
+    buffer = np.frombuffer(bytes(msg.data), dtype=np.uint8, count=msg.step * msg.height)
+    rows = buffer.reshape(msg.height, msg.step)[:, :row_bytes]
+    byte_order = '>' if msg.is_bigendian else '<'
+    array = rows.copy().view(dtype.newbyteorder(byte_order) if dtype.itemsize > 1 else dtype)
+    array = array.astype(dtype, copy=False)
+    return array.reshape(msg.height, msg.width) if channels == 1 else array.reshape(
+        msg.height, msg.width, channels)
+
+
+def array_to_image(array: np.ndarray, encoding: str, header: Header | None = None) -> Image:
+    """Encode an array as a sensor_msgs/Image of `encoding` (dense rows, little-endian)."""
+    check_encoding(encoding)
+    dtype, channels = SUPPORTED_ENCODINGS[encoding]
+    expected_ndim = 2 if channels == 1 else 3
+    if array.ndim != expected_ndim or (channels > 1 and array.shape[2] != channels):
+        raise ImageEncodingError(f'array of shape {array.shape} does not fit {encoding}')
+    contiguous = np.ascontiguousarray(array, dtype=dtype)
+    msg = Image()
+    if header is not None:
+        msg.header = header
+    msg.height, msg.width = int(contiguous.shape[0]), int(contiguous.shape[1])
+    msg.encoding = encoding
+    msg.is_bigendian = 0
+    msg.step = int(msg.width * channels * dtype.itemsize)
+    msg.data = contiguous.tobytes()
+    return msg
+
+
+def check_image_layout(msg: Image) -> None:
+    """Check what image_to_array checks (encoding, size, step, buffer) without decoding.
+
+    Raises:
+        ImageEncodingError: For an unsupported encoding, an empty image, a step shorter than
+            a row, or data shorter than step * height.
+    """
+    check_encoding(msg.encoding)
+    dtype, channels = SUPPORTED_ENCODINGS[msg.encoding]
+    row_bytes = msg.width * channels * dtype.itemsize
+    if msg.width == 0 or msg.height == 0:
+        raise ImageEncodingError(f'image is empty ({msg.width}x{msg.height})')
+    if msg.step < row_bytes:
+        raise ImageEncodingError(
+            f'step {msg.step} is shorter than a row of {msg.width} {msg.encoding} pixels '
+            f'({row_bytes} bytes)')
+    if len(msg.data) < msg.step * msg.height:
+        raise ImageEncodingError(
+            f'data holds {len(msg.data)} bytes, expected step*height = {msg.step * msg.height}')
+
+
+def stamp_to_ns(stamp: Time) -> int:
+    """Convert a builtin_interfaces/Time to integer nanoseconds [ns]."""
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+# --- camera calibration ----------------------------------------------------------------------
+
+
+def camera_info_to_calibration(msg: CameraInfo) -> CameraCalibration:
+    """Read K, D, R, P and the image size of a CameraInfo (not validated: see .problem())."""
+    return CameraCalibration(
+        width=int(msg.width),
+        height=int(msg.height),
+        K=np.array(msg.k, dtype=float).reshape(3, 3),
+        D=np.array(msg.d, dtype=float),
+        R=np.array(msg.r, dtype=float).reshape(3, 3),
+        P=np.array(msg.p, dtype=float).reshape(3, 4),
+        distortion_model=msg.distortion_model or 'plumb_bob',
+        frame_id=msg.header.frame_id,
+    )
+
+
+def calibration_to_camera_info(calibration: CameraCalibration,
+                               header: Header | None = None) -> CameraInfo:
+    """Write a CameraCalibration into a CameraInfo (binning 0, full-image ROI)."""
+    msg = CameraInfo()
+    if header is not None:
+        msg.header = header
+    else:
+        msg.header.frame_id = calibration.frame_id
+    msg.width, msg.height = int(calibration.width), int(calibration.height)
+    msg.distortion_model = calibration.distortion_model
+    msg.d = [float(value) for value in np.asarray(calibration.D).ravel()]
+    msg.k = [float(value) for value in np.asarray(calibration.K).ravel()]
+    msg.r = [float(value) for value in np.asarray(calibration.R).ravel()]
+    msg.p = [float(value) for value in np.asarray(calibration.P).ravel()]
+    return msg
+
+
+# --- matched points --------------------------------------------------------------------------
+
+MATCH_FIELDS = ('x', 'y', 'z', 'u_left', 'v_left', 'u_right', 'score')
+_FLOAT32_POINT = np.dtype([(name, '<f4') for name in MATCH_FIELDS])
+
+
+def matched_points_to_cloud(points: MatchedPoints, header: Header) -> PointCloud2:
+    """Pack matched points into an unordered PointCloud2 with float32 fields MATCH_FIELDS."""
+    records = np.empty(len(points), dtype=_FLOAT32_POINT)
+    records['x'], records['y'], records['z'] = points.xyz[:, 0], points.xyz[:, 1], points.xyz[:, 2]
+    records['u_left'], records['v_left'] = points.u_left, points.v_left
+    records['u_right'], records['score'] = points.u_right, points.score
+    cloud = PointCloud2()
+    cloud.header = header
+    cloud.height, cloud.width = 1, len(points)
+    cloud.fields = [
+        PointField(name=name, offset=4 * index, datatype=PointField.FLOAT32, count=1)
+        for index, name in enumerate(MATCH_FIELDS)
+    ]
+    cloud.is_bigendian = False
+    cloud.point_step = _FLOAT32_POINT.itemsize
+    cloud.row_step = cloud.point_step * len(points)
+    cloud.is_dense = True
+    cloud.data = records.tobytes()
+    return cloud
+
+
+_POINT_FIELD_TYPES = {
+    PointField.INT8: 'i1', PointField.UINT8: 'u1', PointField.INT16: 'i2',
+    PointField.UINT16: 'u2', PointField.INT32: 'i4', PointField.UINT32: 'u4',
+    PointField.FLOAT32: 'f4', PointField.FLOAT64: 'f8',
+}
+
+
+def cloud_to_matched_points(cloud: PointCloud2) -> MatchedPoints:
+    """Unpack a PointCloud2 with fields MATCH_FIELDS (any order, offsets or numeric types).
+
+    Raises:
+        ValueError: When a field is missing or the buffer is shorter than the header says.
+    """
+    fields = {field.name: field for field in cloud.fields}
+    missing = [name for name in MATCH_FIELDS if name not in fields]
+    if missing:
+        raise ValueError(f'point cloud lacks field(s) {", ".join(missing)}; has '
+                         f'{", ".join(fields) or "none"}')
+    count = int(cloud.width) * int(cloud.height)
+    if count == 0:
+        return MatchedPoints.empty()
+    byte_order = '>' if cloud.is_bigendian else '<'
+    dtype = np.dtype({
+        'names': list(MATCH_FIELDS),
+        'formats': [byte_order + _POINT_FIELD_TYPES[fields[name].datatype]
+                    for name in MATCH_FIELDS],
+        'offsets': [fields[name].offset for name in MATCH_FIELDS],
+        'itemsize': int(cloud.point_step),
+    })
+    if len(cloud.data) < count * cloud.point_step:
+        raise ValueError(f'point cloud data holds {len(cloud.data)} bytes, expected '
+                         f'{count * cloud.point_step} for {count} points')
+    records = np.frombuffer(bytes(cloud.data), dtype=dtype, count=count)
+    column = {name: records[name].astype(np.float64) for name in MATCH_FIELDS}
+    return MatchedPoints(
+        xyz=np.stack([column['x'], column['y'], column['z']], axis=1),
+        u_left=column['u_left'], v_left=column['v_left'], u_right=column['u_right'],
+        score=column['score'])
+
+
+# --- fuzzy best-point decisions --------------------------------------------------------------
+
+
+def _point(values: np.ndarray | None) -> Point:
+    """Return a geometry_msgs/Point; NaN (unknown) stays NaN, None gives the origin."""
+    if values is None:
+        return Point()
+    return Point(x=float(values[0]), y=float(values[1]), z=float(values[2]))
+
+
+def decision_to_message(decision: BestPointDecision, header: Header,
+                        camera_frame_id: str) -> FuzzyDecision:
+    """Return a FuzzyDecision (header.frame_id should be `world`) for one BestPointDecision.
+
+    Unknown values (no correlation area, empty areas) are NaN; rule arrays are empty for
+    selectors without rules.
+    """
+    msg = FuzzyDecision()
+    msg.header = header
+    msg.selector = decision.selector
+    msg.rule_base = decision.rule_base
+    msg.has_best_point = decision.has_best_point
+    msg.status = decision.status_text()
+    msg.best_point_world = _point(decision.best_point_world)
+    msg.best_point_camera = _point(decision.best_point_camera)
+    msg.camera_frame_id = camera_frame_id
+    msg.points_in = int(decision.points_in)
+    msg.points_valid = int(decision.points_valid)
+    msg.clusters_found = int(decision.clusters_found)
+    msg.points_used = int(decision.points_used)
+    msg.top_height = float(decision.top_height)
+    msg.border_points = [_point(row) for row in decision.border_points]
+    msg.border_distances = [float(value) for value in decision.border_distances]
+    msg.area_centres = [_point(row) for row in decision.area_centres]
+    msg.area_centres_u_left = [float(value) for value in decision.area_centres_u_left]
+    msg.area_centres_v_left = [float(value) for value in decision.area_centres_v_left]
+    msg.area_centres_u_right = [float(value) for value in decision.area_centres_u_right]
+    msg.area_point_counts = [int(value) for value in decision.area_point_counts]
+    msg.d1 = [float(value) for value in decision.d1]
+    msg.d2 = [float(value) for value in decision.d2]
+    msg.ratio = [float(value) for value in decision.ratio]
+    msg.rule_names = list(decision.rule_names)
+    msg.membership_degrees = [float(value) for value in decision.membership_degrees]
+    msg.firing_strengths = [float(value) for value in decision.firing_strengths]
+    return msg
+
+
+def best_point_to_point_stamped(decision: BestPointDecision, header: Header) -> PointStamped:
+    """Return the decision's best point in `world` as a PointStamped (header: world, stamp).
+
+    Raises:
+        ValueError: When the decision has no best point.
+    """
+    if decision.best_point_world is None:
+        raise ValueError(f'decision has no best point ({decision.status_text()})')
+    return PointStamped(header=header, point=_point(decision.best_point_world))
+
+
+# --- correlation stage -----------------------------------------------------------------------
+
+
+def stereo_pair_to_domain(pair: StereoPair) -> tuple[np.ndarray, np.ndarray, StereoCalibration]:
+    """Decode a StereoPair into grey left and right arrays and the pair's calibration.
+
+    The calibration is not validated here (see StereoCalibration.problem()).
+
+    Raises:
+        ImageEncodingError: For an unsupported encoding or a malformed image buffer.
+    """
+    left = to_gray(image_to_array(pair.left_image), pair.left_image.encoding)
+    right = to_gray(image_to_array(pair.right_image), pair.right_image.encoding)
+    calibration = StereoCalibration(camera_info_to_calibration(pair.left_info),
+                                    camera_info_to_calibration(pair.right_info))
+    return left, right, calibration
+
+
+def stereo_matches_message(header: Header, rectified: StereoCalibration, points: MatchedPoints,
+                           config: MatcherConfig) -> StereoMatches:
+    """Pack triangulated matches, the rectified calibration and the matcher settings."""
+    msg = StereoMatches()
+    msg.header = header
+    msg.left_info = calibration_to_camera_info(rectified.left, header)
+    msg.right_info = calibration_to_camera_info(rectified.right, header)
+    msg.points = matched_points_to_cloud(points, header)
+    msg.method = config.method
+    msg.window_size = int(config.window_size)
+    msg.min_disparity = int(config.min_disparity)
+    msg.disparity_range = int(config.disparity_range)
+    return msg
+
+
+def disparity_image_message(disparity_map: DisparityMap, rectified: StereoCalibration,
+                            header: Header) -> DisparityImage:
+    """Pack a disparity map as stereo_msgs/DisparityImage (32FC1), as stereo_image_proc does.
+
+    Disparities are shifted by the principal-point difference, d - (cx_l - cx_r), as the message
+    defines them; invalid pixels get min_disparity - 1 (below the searched range).
+    """
+    shift = float(rectified.left.P[0, 2] - rectified.right.P[0, 2])
+    config = disparity_map.config
+    low = float(config.min_disparity) - shift
+    image = np.where(np.isfinite(disparity_map.disparity), disparity_map.disparity - shift,
+                     low - 1.0).astype(np.float32)
+    msg = DisparityImage()
+    msg.header = header
+    msg.image = Image(header=header, height=image.shape[0], width=image.shape[1],
+                      encoding='32FC1', is_bigendian=0, step=4 * image.shape[1],
+                      data=image.tobytes())
+    msg.f = float(rectified.left.P[0, 0])
+    msg.t = float(rectified.baseline_m)
+    x, y, width, height = disparity_map.roi
+    msg.valid_window = RegionOfInterest(x_offset=x, y_offset=y, width=width, height=height)
+    msg.min_disparity = low
+    msg.max_disparity = float(config.max_disparity) - shift
+    msg.delta_d = 1.0 / 16.0 if config.subpixel else 1.0
+    return msg

@@ -1,0 +1,252 @@
+"""Match stereo pairs by window correlation (Eqs. 7-8) and publish triangulated matches.
+
+Thin adapter around stereo_matching.StereoMatchingPipeline: the subscription only keeps the
+newest pair (a depth-1 hand-off); a worker thread rectifies, matches and triangulates it, so the
+executor never blocks and latency stays bounded; pairs replaced before the worker took them are
+counted as dropped (`superseded`).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import traceback
+from collections import Counter, deque
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from sensor_msgs.msg import PointCloud2
+from stereo_fuzzy_parameters.declaration import declare_parameters
+from stereo_fuzzy_parameters.spec import ParameterValue
+from stereo_msgs.msg import DisparityImage
+
+from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
+from stereo_fuzzy_perception.core.camera_model import CalibrationError
+from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError
+from stereo_fuzzy_perception.core.matching.rectification import RectificationError
+from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
+from stereo_fuzzy_perception.core.matching.window_matcher import MatcherInputError, warm_up
+from stereo_fuzzy_perception.nodes import qos
+from stereo_fuzzy_perception.nodes.conversions import (
+    disparity_image_message,
+    matched_points_to_cloud,
+    stereo_matches_message,
+    stereo_pair_to_domain,
+)
+from stereo_fuzzy_perception.nodes.correlation_parameters import (
+    PARAMETERS,
+    config_problem,
+    matcher_config,
+)
+
+DROP_REASONS = ('superseded', 'calibration', 'size_mismatch', 'encoding', 'matcher_input',
+                'internal')
+
+
+class CorrelationNode(Node):
+    """Match stereo pairs by window correlation and publish triangulated matches."""
+
+    def __init__(self, **kwargs: object) -> None:
+        super().__init__('correlation_node', **kwargs)  # type: ignore[arg-type]
+        self.parameters = declare_parameters(self, PARAMETERS, validate=config_problem,
+                                             apply=self._apply_parameters)
+        self.pipeline = StereoMatchingPipeline(matcher_config(self.parameters),
+                                               int(self.parameters['point_stride']))
+        input_qos = QoSProfile(depth=qos.RESULTS.depth, history=qos.RESULTS.history,
+                               durability=qos.RESULTS.durability,
+                               reliability=qos.reliability_from_name(
+                                   str(self.parameters['input_reliability'])))
+        self.matches_publisher = self.create_publisher(StereoMatches, 'stereo/matches',
+                                                       qos.RESULTS)
+        self.points_publisher = self.create_publisher(PointCloud2, 'stereo/points', qos.RESULTS)
+        self.disparity_publisher = self.create_publisher(DisparityImage, 'stereo/disparity',
+                                                         qos.RESULTS)
+        self.diagnostics_publisher = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                                           qos.DIAGNOSTICS)
+        self._input_qos = input_qos
+
+        self._condition = threading.Condition()
+        self._pending: deque[StereoPair] = deque()
+        self._stopping = False
+        self.received = 0
+        self.processed = 0
+        self.dropped: Counter[str] = Counter({reason: 0 for reason in DROP_REASONS})
+        self.last_error = ''
+        self.last_timings_ms: dict[str, float] = {}
+        self.last_points = 0
+        self._total_ms = 0.0
+        self._error_loggers = {reason: self.get_logger().get_child(reason)
+                               for reason in DROP_REASONS}
+        self._worker = threading.Thread(target=self._work, name='correlation_worker',
+                                        daemon=True)
+        self._worker.start()
+        self.create_timer(float(self.parameters['diagnostics_period_s']),
+                          self._publish_diagnostics)
+        self.get_logger().info(
+            f'correlation_node started: {self.pipeline.config.method}, window '
+            f'{self.pipeline.config.window_size}, disparities {self.pipeline.config.min_disparity}'
+            f'..{self.pipeline.config.max_disparity}')
+
+    # --- parameters and input -----------------------------------------------------------------
+
+    def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
+        self.pipeline.config = matcher_config(values)
+        self.pipeline.point_stride = int(values['point_stride'])  # type: ignore[arg-type]
+        self.get_logger().info(f'matcher settings now {self.pipeline.config}')
+
+    def _on_pair(self, pair: StereoPair) -> None:
+        with self._condition:
+            self.received += 1
+            if len(self._pending) >= int(self.parameters['input_queue_depth']):
+                self._pending.popleft()
+                self.dropped['superseded'] += 1
+                self.get_logger().warning(
+                    'dropped a pair that waited while the previous one was matched '
+                    f"({self.dropped['superseded']} so far): input faster than matching",
+                    throttle_duration_sec=5.0)
+            self._pending.append(pair)
+            self._condition.notify()
+
+    # --- worker -------------------------------------------------------------------------------
+
+    def _work(self) -> None:
+        seconds = warm_up()
+        # Subscribe only now: until the kernels are compiled (10-15 s on a fresh checkout) the
+        # node could not keep up, and upstream publishers (or `bag play --wait-for-subscribers`)
+        # can see on the graph when it is ready.
+        self.create_subscription(StereoPair, 'stereo/pair', self._on_pair, self._input_qos)
+        self.get_logger().info(f'matching kernels ready in {seconds:.2f} s (numba compile or '
+                               'cache load); subscribed to stereo/pair')
+        next_allowed = 0.0
+        while True:
+            with self._condition:
+                while not self._pending and not self._stopping:
+                    self._condition.wait()
+                rate = float(self.parameters['max_rate_hz'])
+                while rate > 0.0 and not self._stopping and time.monotonic() < next_allowed:
+                    self._condition.wait(next_allowed - time.monotonic())
+                if self._stopping:
+                    return
+                pair = self._pending.popleft() if self._pending else None
+            if pair is None:
+                continue
+            if rate > 0.0:
+                next_allowed = time.monotonic() + 1.0 / rate
+            self._process(pair)
+
+    def _process(self, pair: StereoPair) -> None:
+        try:
+            left, right, calibration = stereo_pair_to_domain(pair)
+            calibration.require_valid()
+            if left.shape != right.shape:
+                raise RectificationError(
+                    f'left image is {left.shape[1]}x{left.shape[0]} but right image is '
+                    f'{right.shape[1]}x{right.shape[0]}')
+            # A stereo/disparity subscriber gets every row; otherwise only the rows that
+            # point_stride publishes are matched.
+            result = self.pipeline.process(
+                left, right, calibration,
+                full_disparity=self.disparity_publisher.get_subscription_count() > 0)
+        except ImageEncodingError as error:
+            self._drop('encoding', str(error))
+            return
+        except CalibrationError as error:
+            self._drop('calibration', str(error))
+            return
+        except RectificationError as error:
+            self._drop('size_mismatch', str(error))
+            return
+        except MatcherInputError as error:
+            self._drop('matcher_input', str(error))
+            return
+        except Exception as error:  # keep matching whatever one pair does
+            self._drop('internal', f'{error!r}\n{traceback.format_exc()}')
+            return
+        start = time.perf_counter()
+        header = pair.header
+        try:
+            self.matches_publisher.publish(stereo_matches_message(
+                header, result.rectified, result.points, result.disparity_map.config))
+            if self.points_publisher.get_subscription_count() > 0:
+                self.points_publisher.publish(matched_points_to_cloud(result.points, header))
+            if self.disparity_publisher.get_subscription_count() > 0:
+                self.disparity_publisher.publish(
+                    disparity_image_message(result.disparity_map, result.rectified, header))
+        except Exception:
+            if not self.context.ok():
+                return  # shutting down: nothing left to publish to
+            raise
+        timings = dict(result.timings_ms, publish=1e3 * (time.perf_counter() - start))
+        with self._condition:
+            self.processed += 1
+            self.last_timings_ms = timings
+            self.last_points = len(result.points)
+            self._total_ms += sum(timings.values())
+        self.get_logger().debug(
+            f'pair matched: {len(result.points)} points, '
+            + ', '.join(f'{name} {ms:.1f} ms' for name, ms in timings.items()))
+
+    def _drop(self, reason: str, text: str) -> None:
+        with self._condition:
+            self.dropped[reason] += 1
+            self.last_error = f'{reason}: {text.splitlines()[0]}'
+        self._error_loggers[reason].error(
+            f'stereo pair dropped ({reason}): {text}',
+            throttle_duration_sec=float(self.parameters['error_log_period_s']))
+        self._publish_diagnostics()
+
+    # --- diagnostics and shutdown -------------------------------------------------------------
+
+    def _publish_diagnostics(self) -> None:
+        with self._condition:
+            values = {
+                'pairs received': self.received,
+                'pairs processed': self.processed,
+                **{f'dropped {reason}': count for reason, count in self.dropped.items()},
+                'last valid points': self.last_points,
+                **{f'last {name} time [ms]': round(ms, 2)
+                   for name, ms in self.last_timings_ms.items()},
+                'mean processing time [ms]': round(self._total_ms / self.processed, 2)
+                if self.processed else 0.0,
+            }
+            last_error = self.last_error
+            errors = sum(count for reason, count in self.dropped.items()
+                         if reason != 'superseded')
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.WARN if errors else DiagnosticStatus.OK,
+            name=f'{self.get_name()}: correlation', hardware_id=self.get_namespace(),
+            message=f'last error: {last_error}' if last_error else 'matching',
+            values=[KeyValue(key=key, value=str(value)) for key, value in values.items()])
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self.diagnostics_publisher.publish(array)
+
+    def destroy_node(self) -> None:
+        """Stop the worker thread, then destroy the node."""
+        with self._condition:
+            self._stopping = True
+            self._condition.notify_all()
+        self._worker.join(timeout=30.0)
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> None:
+    """Run the node until shutdown."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = CorrelationNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,199 @@
+"""Choose the best point of the correlation area with the fuzzy system (or a baseline).
+
+Subscribes `stereo/matches` (StereoMatches), publishes `best_point` (PointStamped in `world`,
+stamped with the pair's stamp, only when a point was chosen) and `best_point/decision`
+(FuzzyDecision, for every input, with the reason when no point was chosen), and /diagnostics.
+The algorithm is point_selectors.BestPointChooser; this node only converts and publishes. A
+decision takes a few milliseconds even at 100k points, so it runs in the subscription callback and
+every input gets its decision.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import Counter
+from typing import Any
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PointStamped
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from std_msgs.msg import Header
+from stereo_fuzzy_parameters.declaration import declare_parameters
+from stereo_fuzzy_parameters.spec import ParameterValue
+
+from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
+from stereo_fuzzy_perception.core.best_point import correlation_area
+from stereo_fuzzy_perception.core.best_point.correlation_area import (
+    DEGENERATE_AREA,
+    NO_POINTS,
+    NO_RULE_FIRED,
+    STATUS_OK,
+    TOO_FEW_POINTS,
+)
+from stereo_fuzzy_perception.core.best_point.point_selectors import (
+    BestPointChooser,
+    BestPointDecision,
+    SelectorError,
+)
+from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+from stereo_fuzzy_perception.nodes import qos
+from stereo_fuzzy_perception.nodes.conversions import (
+    best_point_to_point_stamped,
+    camera_info_to_calibration,
+    cloud_to_matched_points,
+    decision_to_message,
+)
+from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import (
+    PARAMETERS,
+    area_config,
+    stereo_rig,
+)
+
+MATCHES_TOPIC = 'stereo/matches'
+BEST_POINT_TOPIC = 'best_point'
+DECISION_TOPIC = 'best_point/decision'
+DIAGNOSTICS_TOPIC = '/diagnostics'
+MALFORMED_INPUT = 'malformed_input'
+REFUSAL_REASONS = (NO_POINTS, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED, MALFORMED_INPUT)
+ERROR_THROTTLE_S = 5.0
+
+
+def build_chooser(values: dict[str, ParameterValue]) -> BestPointChooser:
+    """Return the chooser the parameter values describe.
+
+    Raises:
+        SelectorError: Unknown selector or an unusable rule base / weights file.
+    """
+    return BestPointChooser.create(
+        str(values['selector']), area_config(values), stereo_rig(values),
+        rule_base_file=str(values['rule_base_file']), weights_file=str(values['network_file']))
+
+
+def check_parameters(values: dict[str, ParameterValue]) -> str | None:
+    """Return why the parameter values cannot work together (e.g. a bad rule base), or None."""
+    try:
+        build_chooser(values)
+    except SelectorError as error:
+        return str(error)
+    return None
+
+
+class FuzzyBestPointNode(Node):
+    """Choose the best point of the correlation area with the fuzzy system."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('fuzzy_best_point_node', **kwargs)
+        self._lock = threading.Lock()
+        self.parameters = declare_parameters(self, PARAMETERS, validate=check_parameters,
+                                             apply=self._apply_parameters)
+        self._chooser = build_chooser(self.parameters)
+        # Compile (first run) or load the numba point kernel now, not on the first input.
+        started = time.monotonic()
+        correlation_area.warm_up()
+        self.get_logger().info(
+            f'point kernel ready in {time.monotonic() - started:.2f} s (numba compile or cache)')
+        self.decisions: Counter[str] = Counter({STATUS_OK: 0, **dict.fromkeys(
+            REFUSAL_REASONS, 0)})
+        self._last_status = 'waiting for input'
+        self.best_point_publisher = self.create_publisher(
+            PointStamped, BEST_POINT_TOPIC, qos.RESULTS)
+        self.decision_publisher = self.create_publisher(
+            FuzzyDecision, DECISION_TOPIC, qos.RESULTS)
+        self.diagnostics_publisher = self.create_publisher(
+            DiagnosticArray, DIAGNOSTICS_TOPIC, qos.DIAGNOSTICS)
+        self.create_subscription(StereoMatches, MATCHES_TOPIC, self._on_matches, qos.RESULTS)
+        self.create_timer(float(self.parameters['diagnostics_period']),
+                          self._publish_diagnostics)
+        self.get_logger().info(
+            f'choosing best points with {self._describe()} from {MATCHES_TOPIC}')
+
+    def _describe(self) -> str:
+        chooser = self._chooser
+        if chooser.rule_base is not None:
+            return f'{chooser.selector} (rule base {chooser.rule_base.name!r})'
+        return chooser.selector
+
+    def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
+        chooser = build_chooser(values)  # validated already
+        with self._lock:
+            self.parameters = values
+            self._chooser = chooser
+        self.get_logger().info(f'now choosing with {self._describe()}')
+
+    def _on_matches(self, msg: StereoMatches) -> None:
+        header = Header(stamp=msg.header.stamp, frame_id=str(self.parameters['world_frame']))
+        with self._lock:
+            chooser = self._chooser
+        try:
+            points = cloud_to_matched_points(msg.points)
+            left = camera_info_to_calibration(msg.left_info)
+            right = camera_info_to_calibration(msg.right_info)
+            problem = StereoCalibration(left, right).problem()
+            if problem:
+                raise ValueError(f'rectified calibration: {problem}')
+        except (ValueError, KeyError, TypeError) as error:
+            self.get_logger().error(
+                f'malformed StereoMatches (stamp {msg.header.stamp.sec}.'
+                f'{msg.header.stamp.nanosec:09d}): {error}',
+                throttle_duration_sec=ERROR_THROTTLE_S)
+            decision = BestPointDecision(chooser.selector, status=MALFORMED_INPUT,
+                                         reason=str(error))
+            self._publish(decision, header, msg.header.frame_id)
+            return
+        decision = chooser.decide(points, left, right)
+        self._publish(decision, header, msg.header.frame_id)
+
+    def _publish(self, decision: BestPointDecision, header: Header, camera_frame: str) -> None:
+        self.decisions[decision.status] += 1
+        self._last_status = decision.status_text()
+        if decision.has_best_point:
+            self.best_point_publisher.publish(best_point_to_point_stamped(decision, header))
+            point = decision.best_point_world
+            self.get_logger().debug(
+                f'best point ({point[0]:.4f}, {point[1]:.4f}, {point[2]:.4f}) m from '
+                f'{decision.points_used} of {decision.points_in} points')
+        else:
+            self.get_logger().debug(f'no best point: {decision.status_text()}')
+        self.decision_publisher.publish(decision_to_message(decision, header, camera_frame))
+
+    def _publish_diagnostics(self) -> None:
+        made = self.decisions[STATUS_OK]
+        refused = {reason: self.decisions[reason] for reason in REFUSAL_REASONS}
+        status = DiagnosticStatus(name=f'{self.get_name()}: best point',
+                                  hardware_id=self._describe())
+        if made == 0 and not any(refused.values()):
+            status.level, status.message = DiagnosticStatus.OK, 'waiting for input'
+        elif self._last_status == STATUS_OK:
+            status.level, status.message = DiagnosticStatus.OK, 'choosing best points'
+        else:
+            status.level, status.message = DiagnosticStatus.WARN, self._last_status
+        values: list[tuple[str, object]] = [('selector', self._chooser.selector),
+                                            ('decisions made', made),
+                                            ('decisions refused', sum(refused.values()))]
+        values += [(f'refused {reason}', count) for reason, count in refused.items()]
+        status.values = [KeyValue(key=key, value=str(value)) for key, value in values]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self.diagnostics_publisher.publish(array)
+
+
+def main(args: list[str] | None = None) -> None:
+    """Run the node until shutdown."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = FuzzyBestPointNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

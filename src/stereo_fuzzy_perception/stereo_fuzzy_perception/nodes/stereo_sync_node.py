@@ -1,0 +1,507 @@
+"""Pair left and right images with their calibration into StereoPair messages.
+
+Two sources (parameter `source`):
+
+- `topics`: left/image_raw, left/camera_info, right/image_raw, right/camera_info, grouped by
+  header stamp by stamp_pairing.StampSynchronizer over the four streams (exact, or within
+  `slop`), as stereo_image_proc synchronises the same four inputs with message_filters.
+- `devices`: two OpenCV captures (device index, video file or image pattern) read by a
+  capture thread at `frame_rate`, with calibration from two ROS camera-calibration YAML files.
+
+Every set is checked (encoding, image sizes, calibration) before it is published on
+stereo/pair; a bad set is dropped, counted by reason and reported on /diagnostics.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from collections import Counter, deque
+from dataclasses import dataclass, replace
+from functools import partial
+from typing import Any
+
+import cv2
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.executors import ExternalShutdownException
+from rclpy.impl.rcutils_logger import RcutilsLogger
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import Header
+from stereo_fuzzy_parameters.declaration import declare_parameters
+from stereo_fuzzy_parameters.spec import ParameterValue
+
+from stereo_fuzzy_msgs.msg import StereoPair
+from stereo_fuzzy_perception.core.camera_calibration_file import (
+    CalibrationFileError,
+    read_calibration_yaml,
+)
+from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+from stereo_fuzzy_perception.core.image_encoding import SUPPORTED_ENCODINGS, ImageEncodingError
+from stereo_fuzzy_perception.core.stamp_pairing import Evicted, StampSynchronizer, seconds_to_ns
+from stereo_fuzzy_perception.nodes import qos
+from stereo_fuzzy_perception.nodes.conversions import (
+    array_to_image,
+    calibration_to_camera_info,
+    camera_info_to_calibration,
+    check_image_layout,
+    stamp_to_ns,
+)
+from stereo_fuzzy_perception.nodes.stereo_sync_parameters import PARAMETERS, check_parameters
+
+# The four synchronised input streams, in StampSynchronizer stream order.
+INPUT_TOPICS = ('left/image_raw', 'left/camera_info', 'right/image_raw', 'right/camera_info')
+LEFT_IMAGE, LEFT_INFO, RIGHT_IMAGE, RIGHT_INFO = range(4)
+INFO_OF_IMAGE = {LEFT_IMAGE: LEFT_INFO, RIGHT_IMAGE: RIGHT_INFO}
+PAIR_TOPIC = 'stereo/pair'
+DIAGNOSTICS_TOPIC = '/diagnostics'
+
+# Why a pair is dropped; every reason is reported on /diagnostics, zero or not.
+DROP_REASONS = (
+    'unsupported_encoding',   # encoding not in image_encoding.SUPPORTED_ENCODINGS
+    'bad_image',              # empty image, step shorter than a row, data shorter than step*h
+    'uncalibrated',           # camera_info unusable: K all zero, P all zero, size 0, NaN
+    'size_mismatch',          # left vs right image, or an image vs its camera_info
+    'right_tx_not_negative',  # right P[0,3] >= 0: not the right camera of a stereo pair
+    'missing_camera_info',    # an image dropped unpaired while no camera_info was queued
+)
+# Parameters whose value may be an integer or a string on the command line
+# (`-p left_device:=0` or `-p left_device:=left_%03d.png`): declared with dynamic typing.
+DEVICE_PARAMETERS = ('left_device', 'right_device')
+ERROR_THROTTLE_S = 5.0
+
+
+class StereoSyncSetupError(ValueError):
+    """Parameters or capture sources the node cannot start with, named in the message."""
+
+
+@dataclass(frozen=True)
+class PairProblem:
+    """Why a set of two images and two camera_infos cannot be published."""
+
+    reason: str
+    detail: str
+
+
+def pair_problem(left_image: Image, left_info: CameraInfo, right_image: Image,
+                 right_info: CameraInfo) -> PairProblem | None:
+    """Return the first reason the set cannot be used (checks in DROP_REASONS order), or None."""
+    sides = (('left', left_image, left_info), ('right', right_image, right_info))
+    for side, image, _ in sides:
+        try:
+            check_image_layout(image)
+        except ImageEncodingError as error:
+            reason = ('unsupported_encoding' if image.encoding not in SUPPORTED_ENCODINGS
+                      else 'bad_image')
+            return PairProblem(reason, f'{side} image: {error}')
+    calibrations = {}
+    for side, _, info in sides:
+        calibration = camera_info_to_calibration(info)
+        problem = calibration.problem()
+        if problem:
+            return PairProblem('uncalibrated', f'{side} camera_info: {problem}')
+        calibrations[side] = calibration
+    for side, image, info in sides:
+        if (image.width, image.height) != (info.width, info.height):
+            return PairProblem('size_mismatch', (
+                f'{side} image is {image.width}x{image.height} but its camera_info is '
+                f'{info.width}x{info.height}'))
+    if (left_image.width, left_image.height) != (right_image.width, right_image.height):
+        return PairProblem('size_mismatch', (
+            f'left image is {left_image.width}x{left_image.height} but right image is '
+            f'{right_image.width}x{right_image.height}'))
+    problem = StereoCalibration(calibrations['left'], calibrations['right']).problem()
+    if problem:
+        return PairProblem('right_tx_not_negative', problem)
+    return None
+
+
+class PairStatistics:
+    """Counts for /diagnostics; thread-safe, since the devices source counts from its thread."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.pairs_in = 0
+        self.pairs_out = 0
+        self.dropped: Counter[str] = Counter({reason: 0 for reason in DROP_REASONS})
+        self.unpaired: Counter[str] = Counter()
+        self.received: Counter[str] = Counter()
+        self._drop_times: deque[float] = deque(maxlen=1000)
+        self._last_report = (time.monotonic(), 0, 0)
+
+    def count_received(self, topic: str) -> None:
+        """Count one message received on an input topic."""
+        with self._lock:
+            self.received[topic] += 1
+
+    def count_in(self) -> None:
+        """Count one set (or captured frame pair) entering the checks."""
+        with self._lock:
+            self.pairs_in += 1
+
+    def count_out(self) -> None:
+        """Count one StereoPair published."""
+        with self._lock:
+            self.pairs_out += 1
+
+    def count_drop(self, reason: str) -> None:
+        """Count one pair dropped for `reason` (one of DROP_REASONS)."""
+        with self._lock:
+            self.dropped[reason] += 1
+            self._drop_times.append(time.monotonic())
+
+    def count_unpaired(self, topic: str) -> None:
+        """Count one message evicted unpaired from the queue of `topic`."""
+        with self._lock:
+            self.unpaired[topic] += 1
+
+    def report(self, warn_window_s: float) -> dict[str, Any]:
+        """Return the counts, the rates since the last report [Hz] and the recent drops."""
+        with self._lock:
+            now = time.monotonic()
+            last_time, last_in, last_out = self._last_report
+            elapsed = max(now - last_time, 1e-9)
+            self._last_report = (now, self.pairs_in, self.pairs_out)
+            return {
+                'pairs_in': self.pairs_in,
+                'pairs_out': self.pairs_out,
+                'dropped': dict(self.dropped),
+                'unpaired': dict(self.unpaired),
+                'received': dict(self.received),
+                'input_rate_hz': (self.pairs_in - last_in) / elapsed,
+                'output_rate_hz': (self.pairs_out - last_out) / elapsed,
+                'recent_drops': sum(1 for stamp in self._drop_times
+                                    if now - stamp <= warn_window_s),
+            }
+
+
+class StereoSyncNode(Node):
+    """Pair left and right images with their calibration into StereoPair messages."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('stereo_sync_node', **kwargs)
+        self.parameters = declare_parameters(
+            self, [spec for spec in PARAMETERS if spec.name not in DEVICE_PARAMETERS],
+            apply=self._apply_parameters)
+        self.parameters.update(self._declare_device_parameters())
+        reason = check_parameters(self.parameters)
+        if reason:
+            raise StereoSyncSetupError(reason)
+        self.statistics = PairStatistics()
+        self._reason_loggers: dict[str, RcutilsLogger] = {}
+        self._capture: DeviceCapture | None = None
+        self._capture_state = ''
+        self.pair_publisher = self.create_publisher(StereoPair, PAIR_TOPIC, qos.RESULTS)
+        self.diagnostics_publisher = self.create_publisher(
+            DiagnosticArray, DIAGNOSTICS_TOPIC, qos.DIAGNOSTICS)
+        self.create_timer(float(self.parameters['diagnostics_period']), self._publish_diagnostics)
+        if self.parameters['source'] == 'topics':
+            self._start_topics()
+        else:
+            self._start_devices()
+
+    # --- parameters ----------------------------------------------------------------------
+
+    def _declare_device_parameters(self) -> dict[str, ParameterValue]:
+        """Declare the capture sources with dynamic typing and return them as strings.
+
+        `-p left_device:=0` reaches the node as an integer and `:=left_%03d.png` as a
+        string; a statically typed string parameter would reject the first.
+        """
+        values: dict[str, ParameterValue] = {}
+        for spec in PARAMETERS:
+            if spec.name in DEVICE_PARAMETERS:
+                descriptor = ParameterDescriptor(
+                    description=spec.description, read_only=spec.read_only,
+                    additional_constraints='integer device index or string; '
+                                           + spec.constraint_text(),
+                    dynamic_typing=True)
+                value = self.declare_parameter(spec.name, spec.default, descriptor).value
+                values[spec.name] = '' if value is None else str(value)
+        return values
+
+    def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
+        synchronizer = getattr(self, '_synchronizer', None)
+        if synchronizer is not None:
+            synchronizer.slop_ns = seconds_to_ns(float(values['slop']))
+            synchronizer.queue_size = int(values['queue_size'])
+
+    # --- topics source -------------------------------------------------------------------
+
+    def _start_topics(self) -> None:
+        self._synchronizer: StampSynchronizer[Image | CameraInfo] = StampSynchronizer(
+            len(INPUT_TOPICS), seconds_to_ns(float(self.parameters['slop'])),
+            int(self.parameters['queue_size']))
+        base = qos.CAMERA_INPUT
+        input_qos = QoSProfile(
+            history=base.history, depth=base.depth, durability=base.durability,
+            reliability=qos.reliability_from_name(str(self.parameters['input_reliability'])))
+        for stream, topic in enumerate(INPUT_TOPICS):
+            message_type = Image if stream in (LEFT_IMAGE, RIGHT_IMAGE) else CameraInfo
+            self.create_subscription(
+                message_type, topic, partial(self._on_input, stream), input_qos)
+        self.get_logger().info(
+            f'pairing {", ".join(INPUT_TOPICS)} by stamp (slop {self.parameters["slop"]} s, '
+            f'queue {self.parameters["queue_size"]}, {self.parameters["input_reliability"]})')
+
+    def _on_input(self, stream: int, msg: Image | CameraInfo) -> None:
+        self.statistics.count_received(INPUT_TOPICS[stream])
+        result = self._synchronizer.add(stream, stamp_to_ns(msg.header.stamp), msg)
+        for evicted in result.evicted:
+            self._on_evicted(evicted)
+        if result.matched is not None:
+            left_image, left_info, right_image, right_info = result.matched.items
+            self._publish_pair(left_image, left_info, right_image, right_info)
+
+    def _on_evicted(self, evicted: Evicted[Image | CameraInfo]) -> None:
+        topic = INPUT_TOPICS[evicted.stream]
+        self.statistics.count_unpaired(topic)
+        info_stream = INFO_OF_IMAGE.get(evicted.stream)
+        if info_stream is None or self._synchronizer.queue_lengths()[info_stream] > 0:
+            self.get_logger().warn(
+                f'{topic} message at stamp {evicted.stamp_ns * 1e-9:.6f} s dropped unpaired: '
+                f'no set of all four inputs within slop {self.parameters["slop"]} s '
+                f'(queue_size {self.parameters["queue_size"]})',
+                throttle_duration_sec=ERROR_THROTTLE_S)
+            return
+        info_topic = INPUT_TOPICS[info_stream]
+        self._drop('missing_camera_info', (
+            f'{topic} image at stamp {evicted.stamp_ns * 1e-9:.6f} s had no camera_info: '
+            f'none queued on {info_topic} ({self.statistics.received[info_topic]} received); '
+            f'it must be published with the stamps of its images'))
+
+    # --- devices source ------------------------------------------------------------------
+
+    def _start_devices(self) -> None:
+        calibrations = []
+        for side in ('left', 'right'):
+            calibration = read_calibration_yaml(str(self.parameters[f'{side}_calibration_file']))
+            calibrations.append(replace(calibration,
+                                        frame_id=str(self.parameters[f'{side}_frame_id'])))
+        self._device_calibrations = tuple(calibrations)
+        self._capture = DeviceCapture(
+            str(self.parameters['left_device']), str(self.parameters['right_device']))
+        self._capture_state = 'running'
+        self._capture_stop = threading.Event()
+        self._capture_thread = threading.Thread(
+            target=self._capture_loop, name='stereo_capture', daemon=True)
+        self._capture_thread.start()
+        self.get_logger().info(
+            f'capturing {self.parameters["left_device"]} and {self.parameters["right_device"]} '
+            f'at {self.parameters["frame_rate"]} Hz')
+
+    def _capture_loop(self) -> None:
+        try:
+            self._capture_frames()
+        except Exception as error:  # the thread must report, not die silently
+            if self._capture_stop.is_set() or not self.context.ok():
+                return
+            self._capture_state = 'failed'
+            self.get_logger().error(f'capture stopped: {error}')
+
+    def _capture_frames(self) -> None:
+        assert self._capture is not None
+        next_frame = time.monotonic()
+        rewound = False
+        while not self._capture_stop.is_set():
+            frames = self._capture.read()
+            if frames is None:
+                # Rewind once per end: a file that yields nothing even from its start ends.
+                if not self._capture.is_live and self.parameters['loop'] and not rewound:
+                    self._capture.rewind()
+                    rewound = True
+                    continue
+                if not self._capture.is_live:
+                    self._capture_state = 'ended'
+                    self.get_logger().info(
+                        f'end of {self._capture.left_source} / {self._capture.right_source}: '
+                        f'{self.statistics.pairs_in} pairs captured; no more pairs '
+                        f'(set loop:=true to start again)')
+                    return
+                self.get_logger().error(
+                    f'cannot read a frame from device {self._capture.left_source} or '
+                    f'{self._capture.right_source}; retrying',
+                    throttle_duration_sec=ERROR_THROTTLE_S)
+            else:
+                rewound = False
+                self._publish_frames(*frames)
+            period = 1.0 / float(self.parameters['frame_rate'])
+            next_frame = max(next_frame + period, time.monotonic())
+            self._capture_stop.wait(next_frame - time.monotonic())
+
+    def _publish_frames(self, left: np.ndarray, right: np.ndarray) -> None:
+        header = Header(stamp=self.get_clock().now().to_msg())
+        encoding = str(self.parameters['encoding'])
+        messages = []
+        for frame, calibration in zip((left, right), self._device_calibrations, strict=True):
+            side_header = Header(stamp=header.stamp, frame_id=calibration.frame_id)
+            messages.append(array_to_image(convert_frame(frame, encoding), encoding, side_header))
+            messages.append(calibration_to_camera_info(calibration, side_header))
+        self._publish_pair(*messages)
+
+    # --- both sources --------------------------------------------------------------------
+
+    def _publish_pair(self, left_image: Image, left_info: CameraInfo, right_image: Image,
+                      right_info: CameraInfo) -> None:
+        self.statistics.count_in()
+        problem = pair_problem(left_image, left_info, right_image, right_info)
+        if problem is not None:
+            stamp_s = stamp_to_ns(left_image.header.stamp) * 1e-9
+            self._drop(problem.reason, f'pair at stamp {stamp_s:.6f} s: {problem.detail}')
+            return
+        pair = StereoPair(
+            header=Header(stamp=left_image.header.stamp, frame_id=left_image.header.frame_id),
+            left_image=left_image, right_image=right_image,
+            left_info=left_info, right_info=right_info)
+        self.pair_publisher.publish(pair)
+        self.statistics.count_out()
+
+    def _drop(self, reason: str, detail: str) -> None:
+        self.statistics.count_drop(reason)
+        # One logger per reason: rclpy throttles per logger and call site, so one reason
+        # repeating every frame cannot hide another.
+        logger = self._reason_loggers.get(reason)
+        if logger is None:
+            logger = self._reason_loggers[reason] = self.get_logger().get_child(reason)
+        logger.error(f'dropped ({reason}): {detail}', throttle_duration_sec=ERROR_THROTTLE_S)
+
+    def _publish_diagnostics(self) -> None:
+        window = float(self.parameters['drop_warn_window'])
+        report = self.statistics.report(window)
+        status = DiagnosticStatus(
+            name=f'{self.get_name()}: stereo pairing', hardware_id=str(self.parameters['source']))
+        dropped = {reason: count for reason, count in report['dropped'].items() if count}
+        if report['recent_drops']:
+            status.level = DiagnosticStatus.WARN
+            status.message = (f'{report["recent_drops"]} pairs dropped in the last {window} s ('
+                              + ', '.join(f'{r}: {c}' for r, c in dropped.items()) + ' in all)')
+        elif self._capture_state == 'failed':
+            status.level = DiagnosticStatus.ERROR
+            status.message = 'capture failed'
+        elif self._capture_state == 'ended':
+            status.level = DiagnosticStatus.OK
+            status.message = 'capture ended'
+        elif report['pairs_out'] == 0:
+            status.level = DiagnosticStatus.OK
+            status.message = 'waiting for input'
+        else:
+            status.level = DiagnosticStatus.OK
+            status.message = 'pairing'
+        values = [
+            ('source', self.parameters['source']),
+            ('pairs in', report['pairs_in']),
+            ('pairs out', report['pairs_out']),
+            ('pairs dropped', sum(report['dropped'].values())),
+            ('input rate [Hz]', f'{report["input_rate_hz"]:.2f}'),
+            ('output rate [Hz]', f'{report["output_rate_hz"]:.2f}'),
+        ]
+        values += [(f'dropped {reason}', count) for reason, count in report['dropped'].items()]
+        if self.parameters['source'] == 'topics':
+            values.append(('slop [s]', self.parameters['slop']))
+            values += [(f'received {topic}', report['received'].get(topic, 0))
+                       for topic in INPUT_TOPICS]
+            values += [(f'unpaired {topic}', report['unpaired'].get(topic, 0))
+                       for topic in INPUT_TOPICS]
+        else:
+            values.append(('capture', self._capture_state))
+        status.values = [KeyValue(key=key, value=str(value)) for key, value in values]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self.diagnostics_publisher.publish(array)
+
+    def destroy_node(self) -> None:
+        """Stop the capture thread and release the captures, then destroy the node."""
+        if self._capture is not None:
+            self._capture_stop.set()
+            self._capture_thread.join(timeout=5.0)
+            self._capture.release()
+            self._capture = None
+        super().destroy_node()
+
+
+class DeviceCapture:
+    """Two OpenCV captures read as a pair: grab both first, then decode, to keep them close.
+
+    Args:
+        left_source: Device index ('0'), device path, video file or image pattern.
+        right_source: Likewise for the right camera.
+
+    Raises:
+        StereoSyncSetupError: When a capture cannot be opened, naming it.
+    """
+
+    def __init__(self, left_source: str, right_source: str) -> None:
+        self.left_source, self.right_source = left_source, right_source
+        # Cameras and streams have no end; files and image patterns do.
+        self.is_live = (left_source.isdigit() or left_source.startswith('/dev/')
+                        or '://' in left_source)
+        self._captures = [self._open(left_source), self._open(right_source)]
+
+    @staticmethod
+    def _open(source: str) -> cv2.VideoCapture:
+        capture = cv2.VideoCapture(int(source) if source.isdigit() else source)
+        if not capture.isOpened():
+            raise StereoSyncSetupError(f'cannot open capture {source!r} (a device index, a device '
+                               'path, a video file, or an image pattern such as left_%03d.png)')
+        return capture
+
+    def read(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Return the next (left, right) frames, or None when either capture has none."""
+        if not all(capture.grab() for capture in self._captures):
+            return None
+        frames = [capture.retrieve() for capture in self._captures]
+        if not all(ok and frame is not None for ok, frame in frames):
+            return None
+        return frames[0][1], frames[1][1]
+
+    def rewind(self) -> None:
+        """Reopen both files at their first frame."""
+        self.release()
+        self._captures = [self._open(self.left_source), self._open(self.right_source)]
+
+    def release(self) -> None:
+        """Release both captures."""
+        for capture in self._captures:
+            capture.release()
+
+
+def convert_frame(frame: np.ndarray, encoding: str) -> np.ndarray:
+    """Convert an OpenCV frame (BGR, or grey from some backends) to `encoding`."""
+    if frame.ndim == 2:
+        frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
+    if encoding == 'mono8':
+        return cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+    if encoding == 'rgb8':
+        return cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
+    return frame
+
+
+def main(args: list[str] | None = None) -> None:
+    """Run the node until shutdown."""
+    rclpy.init(args=args)
+    node = None
+    failed = False
+    try:
+        node = StereoSyncNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (StereoSyncSetupError, CalibrationFileError) as error:
+        # Wiring mistakes: one clear line instead of a traceback.
+        rclpy.logging.get_logger('stereo_sync_node').fatal(f'cannot start: {error}')
+        failed = True
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    if failed:
+        sys.exit(1)
+
+
+if __name__ == '__main__':
+    main()

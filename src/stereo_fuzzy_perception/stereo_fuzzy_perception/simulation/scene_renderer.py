@@ -1,0 +1,522 @@
+"""Render stereo pairs of a scene on the CPU with pybullet's TinyRenderer (headless, DIRECT).
+
+What comes out is what two real cameras and a stereo calibration would give: a left and a right
+image, the calibration (K, D, R, P of each camera from cv2.stereoRectify with the rig's R, T, as
+a stereo calibration publishes it), and the ground truth (the centre of the object's top face).
+
+Camera conventions (see /work/shared/notes/pybullet-rendering.md):
+
+* fx = fy = (H / 2) / tan(vertical_fov / 2); principal point cx = W / 2, cy = H / 2 - 1.
+* Camera poses come from rig_geometry.StereoRig (optical frames: x right, y down, z forward).
+* Lens distortion is applied after rendering: the ideal image is resampled with cv2.remap so that
+  cv2.undistort with the published D recovers it. The ideal image is rendered with a margin so
+  that barrel distortion pulls in real scene content, not a black border.
+* Sensors: Gaussian noise, and a gain and offset of the right camera relative to the left.
+
+Textures are random and non-repeating (multi-octave value noise): window correlation needs them.
+Every face of a mesh gets explicit texture coordinates in metres, so texel density does not
+depend on the object's size. The lighting is mostly ambient so flat tops never saturate.
+
+ROS-free: numpy, OpenCV and pybullet only.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pybullet
+
+from stereo_fuzzy_perception.core.camera_model import CameraCalibration, StereoCalibration
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+from stereo_fuzzy_perception.simulation.scene_model import (
+    GroundTruth,
+    ObjectType,
+    Scene,
+    SceneObject,
+    SimulatedCamera,
+    random_scene,
+)
+
+LEFT_FRAME_ID = 'left_camera_optical_frame'
+RIGHT_FRAME_ID = 'right_camera_optical_frame'
+RENDER_ENCODINGS = ('rgb8', 'bgr8', 'mono8')
+# OpenGL cameras look along -z with y up; optical frames look along +z with y down.
+_OPTICAL_TO_GL = np.diag([1.0, -1.0, -1.0])
+
+
+class RenderError(ValueError):
+    """Rendering settings that cannot work, with the reason in the message."""
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """What the two cameras add to the ideal image.
+
+    Attributes:
+        noise_std: Standard deviation of additive Gaussian noise [grey levels of 255].
+        right_gain: Right camera's gain relative to the left [-].
+        right_offset: Right camera's offset relative to the left [grey levels of 255].
+        distortion: plumb_bob coefficients (k1, k2, p1, p2, k3), the same for both lenses.
+    """
+
+    noise_std: float = 0.0
+    right_gain: float = 1.0
+    right_offset: float = 0.0
+    distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+
+    @property
+    def distorted(self) -> bool:
+        """Return True when the lenses distort."""
+        return any(value != 0.0 for value in self.distortion)
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """TinyRenderer light: mostly ambient so textured tops keep their contrast.
+
+    Attributes:
+        direction: Direction toward the light in `world` [-].
+        ambient: Ambient coefficient [-].
+        diffuse: Diffuse coefficient [-].
+        specular: Specular coefficient [-].
+    """
+
+    direction: tuple[float, float, float] = (0.3, -0.5, 1.0)
+    ambient: float = 0.55
+    diffuse: float = 0.4
+    specular: float = 0.0
+
+
+@dataclass(frozen=True)
+class TextureSettings:
+    """Random texture sizes.
+
+    Attributes:
+        surface_half_extent_m: Half side of the square work surface, centred under the workspace.
+        surface_texture_px: Side of the surface texture [px]; it covers the whole surface.
+        object_texture_span_m: Span of the object texture [m] (texture coordinates in metres).
+        object_texture_px: Side of the object texture [px].
+        finest_feature_m: Cell size of the finest noise octave [m].
+        coarsest_feature_m: Cell size of the coarsest noise octave [m].
+    """
+
+    surface_half_extent_m: float = 0.6
+    surface_texture_px: int = 1024
+    object_texture_span_m: float = 0.25
+    object_texture_px: int = 512
+    finest_feature_m: float = 0.0024
+    coarsest_feature_m: float = 0.05
+
+
+@dataclass(frozen=True)
+class StereoFrame:
+    """One rendered stereo pair with its calibration and ground truth.
+
+    Attributes:
+        left: Left raw image (HxW for mono8, HxWx3 for rgb8/bgr8), uint8.
+        right: Right raw image, same layout.
+        encoding: sensor_msgs encoding of both images.
+        calibration: K, D, R, P of both cameras as a stereo calibration publishes them.
+        ground_truth: Target (top-face centre) and object.
+        scene: The scene rendered.
+        left_mask: Pixels showing the object in the left image (when asked for), else None.
+        right_mask: The same for the right image.
+        left_depth: Depth along the left optical axis [m] per pixel (when asked for), else None.
+        right_depth: The same for the right image.
+    """
+
+    left: np.ndarray
+    right: np.ndarray
+    encoding: str
+    calibration: StereoCalibration
+    ground_truth: GroundTruth
+    scene: Scene
+    left_mask: np.ndarray | None = field(default=None, repr=False)
+    right_mask: np.ndarray | None = field(default=None, repr=False)
+    left_depth: np.ndarray | None = field(default=None, repr=False)
+    right_depth: np.ndarray | None = field(default=None, repr=False)
+
+
+def stereo_calibration(camera: SimulatedCamera, rig: StereoRig,
+                       distortion: tuple[float, ...] = (0.0,) * 5,
+                       rectify_alpha: float = -1.0) -> StereoCalibration:
+    """Return the calibration a stereo calibration of this rig would publish.
+
+    Args:
+        camera: Image size and field of view of both cameras.
+        rig: Relative pose of the cameras (R, T of right <- left).
+        distortion: plumb_bob coefficients of both lenses.
+        rectify_alpha: cv2.stereoRectify's free scaling: -1 (OpenCV's default) keeps the
+            focal length of K, 0 keeps only valid pixels (zooms in), 1 keeps all pixels.
+
+    Returns:
+        Left and right CameraCalibration with K, D, R, P; right P[0, 3] = -fx' * baseline.
+    """
+    K = camera.intrinsics()
+    D = np.array(distortion, dtype=float)
+    rotation, translation = rig.right_from_left()
+    size = (camera.width, camera.height)
+    R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(
+        K, D, K, D, size, rotation, translation.reshape(3, 1),
+        flags=cv2.CALIB_ZERO_DISPARITY, alpha=rectify_alpha)
+    common: dict[str, Any] = {'width': camera.width, 'height': camera.height, 'K': K, 'D': D}
+    return StereoCalibration(
+        left=CameraCalibration(R=R1, P=P1, frame_id=LEFT_FRAME_ID, **common),
+        right=CameraCalibration(R=R2, P=P2, frame_id=RIGHT_FRAME_ID, **common))
+
+
+def random_texture(seed: int, size_px: int, span_m: float, settings: TextureSettings,
+                   tint: tuple[float, float, float]) -> np.ndarray:
+    """Return a non-repeating RGB uint8 texture of multi-octave value noise.
+
+    Args:
+        seed: Seed of the noise.
+        size_px: Side of the square texture [px].
+        span_m: What the texture covers [m] (sets the octaves' cell sizes in pixels).
+        settings: Finest and coarsest feature sizes.
+        tint: Mean colour (r, g, b) in [0, 1].
+    """
+    rng = np.random.default_rng(seed)
+    texel_m = span_m / size_px
+    cell_px = max(2.0, settings.finest_feature_m / texel_m)
+    noise = np.zeros((size_px, size_px), dtype=np.float32)
+    while cell_px <= max(2.0, settings.coarsest_feature_m / texel_m):
+        cells = int(math.ceil(size_px / cell_px)) + 3
+        grid = rng.random((cells, cells), dtype=np.float32)
+        grown = cv2.resize(grid, None, fx=cell_px, fy=cell_px, interpolation=cv2.INTER_CUBIC)
+        offset = int(cell_px)
+        noise += grown[offset:offset + size_px, offset:offset + size_px]
+        cell_px *= 2.0
+    low, high = np.percentile(noise, (1.0, 99.0))
+    shade = np.clip((noise - low) / max(high - low, 1e-6), 0.0, 1.0)
+    hue = rng.random((3,), dtype=np.float32) * 0.2 - 0.1
+    channels = [np.clip((0.25 + 0.75 * shade) * (tint[k] + hue[k]), 0.0, 1.0) for k in range(3)]
+    return np.round(np.stack(channels, axis=2) * 255.0).astype(np.uint8)
+
+
+def _ring(scene_object: SceneObject, segments: int) -> tuple[np.ndarray, np.ndarray]:
+    """Return the object's outline (counter-clockwise from above) and the outward normals."""
+    hx, hy = 0.5 * scene_object.size_x_m, 0.5 * scene_object.size_y_m
+    if scene_object.object_type.is_round:
+        angles = np.linspace(0.0, 2.0 * math.pi, segments, endpoint=False)
+        ring = np.stack([hx * np.cos(angles), hy * np.sin(angles)], axis=1)
+        return ring, np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    ring = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+    return ring, np.zeros_like(ring)
+
+
+def object_mesh(scene_object: SceneObject, span_m: float, segments: int = 96
+                ) -> dict[str, Any]:
+    """Return pybullet GEOM_MESH arguments for the object (top and sides, in its own frame).
+
+    Texture coordinates are in metres divided by `span_m`, so a texture spans `span_m`.
+    """
+    ring, radial = _ring(scene_object, segments)
+    height = scene_object.height_m
+    vertices: list[list[float]] = []
+    normals: list[list[float]] = []
+    uvs: list[list[float]] = []
+    indices: list[int] = []
+    # Top: a fan around the centre, counter-clockwise seen from above.
+    vertices.append([0.0, 0.0, height])
+    for x, y in ring:
+        vertices.append([float(x), float(y), height])
+    normals.extend([[0.0, 0.0, 1.0]] * (len(ring) + 1))
+    uvs.extend([[v[0] / span_m + 0.5, v[1] / span_m + 0.5] for v in vertices])
+    for k in range(len(ring)):
+        indices.extend([0, 1 + k, 1 + (k + 1) % len(ring)])
+    # Sides: one quad per edge, counter-clockwise seen from outside.
+    travelled = 0.0
+    round_object = scene_object.object_type.is_round
+    for k in range(len(ring)):
+        a, b = ring[k], ring[(k + 1) % len(ring)]
+        edge = b - a
+        length = float(np.hypot(*edge))
+        if round_object:
+            na, nb = radial[k], radial[(k + 1) % len(ring)]
+        else:
+            na = nb = np.array([edge[1], -edge[0]]) / length
+        first = len(vertices)
+        for point, normal, z, s in ((a, na, 0.0, travelled), (b, nb, 0.0, travelled + length),
+                                    (b, nb, height, travelled + length),
+                                    (a, na, height, travelled)):
+            vertices.append([float(point[0]), float(point[1]), z])
+            normals.append([float(normal[0]), float(normal[1]), 0.0])
+            uvs.append([(s / span_m) % 1.0 if not round_object else s / span_m, z / span_m])
+        indices.extend([first, first + 1, first + 2, first, first + 2, first + 3])
+        travelled += length
+    # Keep side coordinates inside the texture (a round side is one strip around the object).
+    side_uvs = np.array(uvs[len(ring) + 1:])
+    if round_object and side_uvs[:, 0].max() > 1.0:
+        side_uvs[:, 0] /= side_uvs[:, 0].max()
+    uvs[len(ring) + 1:] = side_uvs.tolist()
+    return {'vertices': vertices, 'indices': indices, 'uvs': uvs, 'normals': normals}
+
+
+def _surface_mesh(half_extent_m: float) -> dict[str, Any]:
+    h = half_extent_m
+    return {'vertices': [[-h, -h, 0.0], [h, -h, 0.0], [h, h, 0.0], [-h, h, 0.0]],
+            'indices': [0, 1, 2, 0, 2, 3],
+            'uvs': [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            'normals': [[0.0, 0.0, 1.0]] * 4}
+
+
+def yaw_quaternion(yaw_rad: float) -> tuple[float, float, float, float]:
+    """Return the (x, y, z, w) quaternion of a rotation about z by `yaw_rad` [rad]."""
+    return (0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0))
+
+
+def _view_matrix(world_from_camera: np.ndarray) -> list[float]:
+    gl_pose = np.eye(4)
+    gl_pose[:3, :3] = world_from_camera[:3, :3] @ _OPTICAL_TO_GL
+    gl_pose[:3, 3] = world_from_camera[:3, 3]
+    return np.linalg.inv(gl_pose).flatten(order='F').tolist()
+
+
+def distortion_maps(camera: SimulatedCamera, distortion: tuple[float, ...]
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Return (map_x, map_y): for each distorted pixel, where it lies in the ideal image [px].
+
+    cv2.remap(ideal, map_x, map_y) then gives the image a lens with `distortion` would see.
+    """
+    K = camera.intrinsics()
+    u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64),
+                       np.arange(camera.height, dtype=np.float64))
+    distorted = np.stack([u.ravel(), v.ravel()], axis=1).reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-9)
+    ideal = cv2.undistortPoints(distorted, K, np.array(distortion, dtype=float), R=np.eye(3),
+                                P=K, criteria=criteria).reshape(camera.height, camera.width, 2)
+    return ideal[..., 0].astype(np.float32), ideal[..., 1].astype(np.float32)
+
+
+def _apply_sensor(image: np.ndarray, rng: np.random.Generator, gain: float, offset: float,
+                  noise_std: float) -> np.ndarray:
+    if gain == 1.0 and offset == 0.0 and noise_std == 0.0:
+        return image
+    values = image.astype(np.float32) * gain + offset
+    if noise_std > 0.0:
+        values += rng.normal(0.0, noise_std, size=values.shape).astype(np.float32)
+    return np.clip(np.round(values), 0, 255).astype(np.uint8)
+
+
+def _convert(rgb: np.ndarray, encoding: str) -> np.ndarray:
+    if encoding == 'rgb8':
+        return np.ascontiguousarray(rgb)
+    if encoding == 'bgr8':
+        return cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
+    return cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+
+
+class SceneRenderer:
+    """Renders scenes seen by a stereo rig; owns one pybullet DIRECT connection.
+
+    Use as a context manager, or call close(). Rendering is deterministic: the same scene and
+    settings give identical images.
+    """
+
+    def __init__(self, camera: SimulatedCamera | None = None, rig: StereoRig | None = None,
+                 sensor: SensorModel | None = None, encoding: str = 'rgb8',
+                 lighting: Lighting | None = None, textures: TextureSettings | None = None,
+                 rectify_alpha: float = -1.0) -> None:
+        """Connect to pybullet and fix the rig, cameras and sensors.
+
+        Raises:
+            RenderError: For an encoding other than rgb8, bgr8 or mono8.
+        """
+        if encoding not in RENDER_ENCODINGS:
+            raise RenderError(f'cannot render encoding {encoding!r}; expected one of '
+                              + ', '.join(RENDER_ENCODINGS))
+        self.camera = camera or SimulatedCamera()
+        self.rig = rig or StereoRig()
+        self.sensor = sensor or SensorModel()
+        self.encoding = encoding
+        self.lighting = lighting or Lighting()
+        self.textures = textures or TextureSettings()
+        self.calibration = stereo_calibration(self.camera, self.rig, self.sensor.distortion,
+                                              rectify_alpha)
+        self._client = pybullet.connect(pybullet.DIRECT)
+        self._texture_dir = tempfile.TemporaryDirectory(prefix='scene_textures_')
+        self._margin_px = 0
+        self._maps: tuple[np.ndarray, np.ndarray] | None = None
+        if self.sensor.distorted:
+            map_x, map_y = distortion_maps(self.camera, self.sensor.distortion)
+            overflow = max(-map_x.min(), -map_y.min(), map_x.max() - (self.camera.width - 1),
+                           map_y.max() - (self.camera.height - 1), 0.0)
+            self._margin_px = int(math.ceil(overflow)) + 2
+            self._maps = (map_x + self._margin_px, map_y + self._margin_px)
+
+    def __enter__(self) -> SceneRenderer:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Disconnect from pybullet and delete the texture files."""
+        if self._client >= 0:
+            pybullet.disconnect(self._client)
+            self._client = -1
+            self._texture_dir.cleanup()
+
+    # --- scene building ------------------------------------------------------------------
+
+    def _load_texture(self, name: str, image: np.ndarray) -> int:
+        path = Path(self._texture_dir.name) / f'{name}.bmp'
+        cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+        texture: int = pybullet.loadTexture(str(path), physicsClientId=self._client)
+        return texture
+
+    def _add_mesh(self, mesh: dict[str, Any], position: tuple[float, float, float],
+                  orientation: tuple[float, float, float, float], texture: int) -> int:
+        shape = pybullet.createVisualShape(pybullet.GEOM_MESH, physicsClientId=self._client,
+                                           **mesh)
+        body: int = pybullet.createMultiBody(baseMass=0.0, baseVisualShapeIndex=shape,
+                                             basePosition=position, baseOrientation=orientation,
+                                             physicsClientId=self._client)
+        pybullet.changeVisualShape(body, -1, textureUniqueId=texture, rgbaColor=[1, 1, 1, 1],
+                                   physicsClientId=self._client)
+        return body
+
+    def _fresh_world(self) -> None:
+        """Start from an empty world on a new connection.
+
+        pybullet caches textures by file path for the life of a connection (resetSimulation
+        keeps them): reloading 'surface.bmp' with new pixels returned the first scene's
+        texture, so a scene looked different depending on what was rendered before it, and
+        unique file names instead leak about 5 MB per scene. A new DIRECT connection costs
+        about a millisecond and frees everything.
+        """
+        pybullet.disconnect(self._client)
+        self._client = pybullet.connect(pybullet.DIRECT)
+
+    def _build(self, scene: Scene) -> int:
+        """Reset the world and add the surface and the object; return the object's body id."""
+        self._fresh_world()
+        settings = self.textures
+        surface_span = 2.0 * settings.surface_half_extent_m
+        surface_texture = self._load_texture('surface', random_texture(
+            scene.surface_texture_seed, settings.surface_texture_px, surface_span, settings,
+            tint=(0.55, 0.6, 0.7)))
+        self._add_mesh(_surface_mesh(settings.surface_half_extent_m), (0.2, 0.15, 0.0),
+                       (0.0, 0.0, 0.0, 1.0), surface_texture)
+        scene_object = scene.scene_object
+        object_texture = self._load_texture('object', random_texture(
+            scene.object_texture_seed, settings.object_texture_px,
+            settings.object_texture_span_m, settings, tint=(0.85, 0.7, 0.45)))
+        return self._add_mesh(object_mesh(scene_object, settings.object_texture_span_m),
+                              (scene_object.x_m, scene_object.y_m, 0.0),
+                              yaw_quaternion(scene_object.yaw_rad), object_texture)
+
+    # --- rendering -----------------------------------------------------------------------
+
+    def _render_view(self, world_from_camera: np.ndarray, segmentation: bool
+                     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Render the RGB image of one camera, distorted; with body ids and depth per pixel."""
+        camera = self.camera
+        margin = self._margin_px
+        width, height = camera.width + 2 * margin, camera.height + 2 * margin
+        fov_deg = math.degrees(2.0 * math.atan((height / 2.0) / camera.focal_px))
+        projection = pybullet.computeProjectionMatrixFOV(
+            fov_deg, width / height, camera.near_m, camera.far_m)
+        light = self.lighting
+        flags = 0 if segmentation else pybullet.ER_NO_SEGMENTATION_MASK
+        _, _, rgba, buffer, seg = pybullet.getCameraImage(
+            width, height, _view_matrix(world_from_camera), projection,
+            lightDirection=list(light.direction), lightAmbientCoeff=light.ambient,
+            lightDiffuseCoeff=light.diffuse, lightSpecularCoeff=light.specular, shadow=0,
+            renderer=pybullet.ER_TINY_RENDERER, flags=flags, physicsClientId=self._client)
+        rgb: np.ndarray = np.reshape(np.asarray(rgba, dtype=np.uint8),
+                                     (height, width, 4))[:, :, :3]
+        ids: np.ndarray | None = None
+        depth: np.ndarray | None = None
+        if segmentation:
+            ids = np.reshape(np.asarray(seg), (height, width))
+            near, far = camera.near_m, camera.far_m
+            depth = far * near / (far - (far - near) * np.reshape(
+                np.asarray(buffer, dtype=np.float64), (height, width)))
+        if self._maps is not None:
+            rgb = cv2.remap(rgb, *self._maps, interpolation=cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_REPLICATE)
+            if ids is not None and depth is not None:
+                ids = cv2.remap(ids.astype(np.float32), *self._maps,
+                                interpolation=cv2.INTER_NEAREST).astype(np.int32)
+                depth = cv2.remap(depth, *self._maps, interpolation=cv2.INTER_NEAREST)
+        return np.ascontiguousarray(rgb), ids, depth
+
+    def render(self, scene: Scene, with_maps: bool = False) -> StereoFrame:
+        """Render `scene` with both cameras.
+
+        Args:
+            scene: The scene to render.
+            with_maps: Also return the object's pixel masks and the depth maps (slower).
+
+        Returns:
+            Images, calibration and ground truth of the scene.
+        """
+        body = self._build(scene)
+        sensor = self.sensor
+        rng = np.random.default_rng([scene.seed, 0x5E45])
+        left_rgb, left_ids, left_depth = self._render_view(
+            self.rig.world_from_left_camera(), with_maps)
+        right_rgb, right_ids, right_depth = self._render_view(
+            self.rig.world_from_right_camera(), with_maps)
+        left = _apply_sensor(_convert(left_rgb, self.encoding), rng, 1.0, 0.0, sensor.noise_std)
+        right = _apply_sensor(_convert(right_rgb, self.encoding), rng, sensor.right_gain,
+                              sensor.right_offset, sensor.noise_std)
+        return StereoFrame(
+            left=left, right=right, encoding=self.encoding, calibration=self.calibration,
+            ground_truth=GroundTruth.of(scene), scene=scene,
+            left_mask=None if left_ids is None else left_ids == body,
+            right_mask=None if right_ids is None else right_ids == body,
+            left_depth=left_depth, right_depth=right_depth)
+
+    def render_markers(self, points_world: np.ndarray, radius_m: float = 0.002
+                       ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """Render small spheres at `points_world` alone and return each one's pixel masks.
+
+        Returns:
+            (left_masks, right_masks): one boolean HxW mask per point and camera.
+        """
+        self._fresh_world()
+        shape = pybullet.createVisualShape(pybullet.GEOM_SPHERE, radius=radius_m,
+                                           physicsClientId=self._client)
+        bodies = [pybullet.createMultiBody(baseMass=0.0, baseVisualShapeIndex=shape,
+                                           basePosition=[float(c) for c in point],
+                                           physicsClientId=self._client)
+                  for point in np.atleast_2d(points_world)]
+        masks = []
+        for pose in (self.rig.world_from_left_camera(), self.rig.world_from_right_camera()):
+            _, ids, _ = self._render_view(pose, segmentation=True)
+            assert ids is not None
+            masks.append([ids == body for body in bodies])
+        return masks[0], masks[1]
+
+
+def render_scene(seed: int, object_type: ObjectType | str | None = None,
+                 rig: StereoRig | None = None, camera: SimulatedCamera | None = None,
+                 sensor: SensorModel | None = None, encoding: str = 'rgb8') -> StereoFrame:
+    """Draw the scene of `seed` and render it once (opens and closes a renderer).
+
+    For many scenes, keep one SceneRenderer and call random_scene + render instead.
+
+    Returns:
+        frame.left, frame.right, frame.calibration, frame.ground_truth (and the scene).
+    """
+    camera = camera or SimulatedCamera()
+    rig = rig or StereoRig()
+    scene = random_scene(seed, object_type, rig=rig, camera=camera)
+    with SceneRenderer(camera=camera, rig=rig, sensor=sensor, encoding=encoding) as renderer:
+        return renderer.render(scene)
+
+
+__all__ = [
+    'LEFT_FRAME_ID', 'RIGHT_FRAME_ID', 'Lighting', 'RenderError', 'SceneRenderer', 'SensorModel',
+    'StereoFrame', 'TextureSettings', 'distortion_maps', 'object_mesh', 'random_texture',
+    'render_scene', 'stereo_calibration', 'yaw_quaternion',
+]
