@@ -66,8 +66,10 @@ def count_object_points(world: np.ndarray, prism: ConvexPrism) -> int:
     """Return how many world points [m] lie over the footprint and above half the height."""
     if not len(world):
         return 0
-    above = world[:, 2] > 0.5 * prism.height
-    return int(np.sum(above & prism.contains_xy(world[:, :2])))
+    low, high = prism.polygon.min(axis=0), prism.polygon.max(axis=0)
+    near = ((world[:, 2] > 0.5 * prism.height) & np.all(world[:, :2] >= low, axis=1)
+            & np.all(world[:, :2] <= high, axis=1))
+    return int(np.sum(prism.contains_xy(world[near, :2])))
 
 
 @dataclass

@@ -192,12 +192,20 @@ class Scene:
         scene_object: The object on the surface.
         surface_texture_seed: Seed of the work surface's random texture.
         object_texture_seed: Seed of the object's random texture.
+        surface_texture_family: Texture family of the surface (texture_families.py).
+        object_texture_family: Texture family of the object.
+        surface_tint: Mean colour (r, g, b) of the surface, 0..1 each.
+        object_tint: Mean colour of the object.
     """
 
     seed: int
     scene_object: SceneObject
     surface_texture_seed: int
     object_texture_seed: int
+    surface_texture_family: str = 'value_noise'
+    object_texture_family: str = 'value_noise'
+    surface_tint: tuple[float, float, float] = (0.55, 0.6, 0.7)
+    object_tint: tuple[float, float, float] = (0.85, 0.7, 0.45)
 
 
 @dataclass(frozen=True)

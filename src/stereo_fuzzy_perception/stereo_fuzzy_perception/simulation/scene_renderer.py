@@ -42,6 +42,7 @@ from stereo_fuzzy_perception.simulation.scene_model import (
     SimulatedCamera,
     random_scene,
 )
+from stereo_fuzzy_perception.simulation.texture_families import NoiseScales, family_texture
 
 LEFT_FRAME_ID = 'left_camera_optical_frame'
 RIGHT_FRAME_ID = 'right_camera_optical_frame'
@@ -395,27 +396,36 @@ class SceneRenderer:
         pybullet.disconnect(self._client)
         self._client = pybullet.connect(pybullet.DIRECT)
 
+    def _texture(self, family: str, seed: int, size_px: int, span_m: float,
+                 tint: tuple[float, float, float]) -> np.ndarray:
+        settings = self.textures
+        if family == 'value_noise':
+            return random_texture(seed, size_px, span_m, settings, tint=tint)
+        return family_texture(family, seed, size_px, span_m, tint, NoiseScales(
+            settings.finest_feature_m, settings.coarsest_feature_m))
+
     def _build(self, scene: Scene) -> int:
         """Reset the world and add the surface and the object; return the object's body id."""
         self._fresh_world()
         settings = self.textures
         surface_span = 2.0 * settings.surface_half_extent_m
-        surface_texture = self._load_texture('surface', random_texture(
-            scene.surface_texture_seed, settings.surface_texture_px, surface_span, settings,
-            tint=(0.55, 0.6, 0.7)))
+        surface_texture = self._load_texture('surface', self._texture(
+            scene.surface_texture_family, scene.surface_texture_seed,
+            settings.surface_texture_px, surface_span, scene.surface_tint))
         self._add_mesh(_surface_mesh(settings.surface_half_extent_m), (0.2, 0.15, 0.0),
                        (0.0, 0.0, 0.0, 1.0), surface_texture)
         scene_object = scene.scene_object
-        object_texture = self._load_texture('object', random_texture(
-            scene.object_texture_seed, settings.object_texture_px,
-            settings.object_texture_span_m, settings, tint=(0.85, 0.7, 0.45)))
+        object_texture = self._load_texture('object', self._texture(
+            scene.object_texture_family, scene.object_texture_seed, settings.object_texture_px,
+            settings.object_texture_span_m, scene.object_tint))
         return self._add_mesh(object_mesh(scene_object, settings.object_texture_span_m),
                               (scene_object.x_m, scene_object.y_m, 0.0),
                               yaw_quaternion(scene_object.yaw_rad), object_texture)
 
     # --- rendering -----------------------------------------------------------------------
 
-    def _render_view(self, world_from_camera: np.ndarray, segmentation: bool
+    def _render_view(self, world_from_camera: np.ndarray, segmentation: bool,
+                     lighting: Lighting | None = None
                      ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """Render the RGB image of one camera, distorted; with body ids and depth per pixel."""
         camera = self.camera
@@ -424,7 +434,7 @@ class SceneRenderer:
         fov_deg = math.degrees(2.0 * math.atan((height / 2.0) / camera.focal_px))
         projection = pybullet.computeProjectionMatrixFOV(
             fov_deg, width / height, camera.near_m, camera.far_m)
-        light = self.lighting
+        light = lighting or self.lighting
         flags = 0 if segmentation else pybullet.ER_NO_SEGMENTATION_MASK
         _, _, rgba, buffer, seg = pybullet.getCameraImage(
             width, height, _view_matrix(world_from_camera), projection,
@@ -449,23 +459,33 @@ class SceneRenderer:
                 depth = cv2.remap(depth, *self._maps, interpolation=cv2.INTER_NEAREST)
         return np.ascontiguousarray(rgb), ids, depth
 
-    def render(self, scene: Scene, with_maps: bool = False) -> StereoFrame:
+    def render(self, scene: Scene, with_maps: bool = False, lighting: Lighting | None = None,
+               sensor: SensorModel | None = None) -> StereoFrame:
         """Render `scene` with both cameras.
 
         Args:
             scene: The scene to render.
             with_maps: Also return the object's pixel masks and the depth maps (slower).
+            lighting: This scene's light (the renderer's when None).
+            sensor: This scene's noise, gain and offset (the renderer's when None); its
+                distortion must be the renderer's (the maps are built once).
 
         Returns:
             Images, calibration and ground truth of the scene.
+
+        Raises:
+            RenderError: For a sensor whose distortion differs from the renderer's.
         """
+        if sensor is not None and sensor.distortion != self.sensor.distortion:
+            raise RenderError(f'a scene sensor cannot change the distortion '
+                              f'{self.sensor.distortion} the renderer was built with')
+        sensor = sensor or self.sensor
         body = self._build(scene)
-        sensor = self.sensor
         rng = np.random.default_rng([scene.seed, 0x5E45])
         left_rgb, left_ids, left_depth = self._render_view(
-            self.rig.world_from_left_camera(), with_maps)
+            self.rig.world_from_left_camera(), with_maps, lighting)
         right_rgb, right_ids, right_depth = self._render_view(
-            self.rig.world_from_right_camera(), with_maps)
+            self.rig.world_from_right_camera(), with_maps, lighting)
         left = _apply_sensor(_convert(left_rgb, self.encoding), rng, 1.0, 0.0, sensor.noise_std)
         right = _apply_sensor(_convert(right_rgb, self.encoding), rng, sensor.right_gain,
                               sensor.right_offset, sensor.noise_std)

@@ -1,0 +1,209 @@
+"""Scenes of the randomized distribution through the real correlation stage, with references.
+
+For each planned scene (scene_distribution.split_plan) this renders the pair with the scene's
+rig, light, textures and sensor, matches it with the correlation stage the node runs (ZNCC,
+default settings apart from the disparity search, which follows from the rig:
+scene_distribution.disparity_search) and returns, per point stride:
+
+* `matched`: the matched points, as correlation_node publishes them;
+* `perfect`: the same pixels' 3D points from the renderer's depth buffer (the ceiling: what the
+  selectors make of perfect 3D points, so matcher loss and selector loss show separately);
+* `opencv`: the best point of a plain OpenCV pipeline on the same pair (opencv_reference.py).
+
+ROS-free; imports pybullet (through the renderer).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig
+from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+from stereo_fuzzy_perception.core.image_encoding import to_gray
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
+from stereo_fuzzy_perception.core.matching.triangulation import triangulate
+from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
+from stereo_fuzzy_perception.core.rig_geometry import transform_points
+from stereo_fuzzy_perception.simulation.opencv_reference import OpenCvReference
+from stereo_fuzzy_perception.simulation.rendered_scenes import count_object_points, prism_of
+from stereo_fuzzy_perception.simulation.scene_distribution import (
+    DEFAULT_SETTINGS,
+    DistributionScene,
+    DistributionSettings,
+    PlannedScene,
+    disparity_search,
+)
+from stereo_fuzzy_perception.simulation.scene_renderer import SceneRenderer, StereoFrame
+from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene
+
+
+def matcher_for(calibration: StereoCalibration, scene: DistributionScene,
+                settings: DistributionSettings = DEFAULT_SETTINGS,
+                base: MatcherConfig | None = None) -> MatcherConfig:
+    """Return the matcher settings for the scene's rig: `base` (defaults) with its disparities."""
+    low, span = disparity_search(calibration, scene.rig.rig, scene.rig.camera,
+                                 settings.max_object_height_m)
+    base = base or MatcherConfig()
+    return MatcherConfig(**{**base.__dict__, 'min_disparity': low, 'disparity_range': span})
+
+
+def perfect_points(frame: StereoFrame, rectified: StereoCalibration, stride: int = 1,
+                   world_from_camera: np.ndarray | None = None,
+                   workspace: tuple[tuple[float, float, float], tuple[float, float, float]] = (
+                       AreaConfig().workspace_min, AreaConfig().workspace_max)
+                   ) -> MatchedPoints:
+    """Return the left image's pixels as 3D points from the depth buffer (every stride-th).
+
+    xyz is in the left optical frame (as the matcher gives it); u_left, v_left and u_right are
+    where the point lies in the rectified pair; the score is 1. With `world_from_camera`, only
+    points inside the `workspace` box (min, max corners in `world` [m]) and more than 2 mm above
+    the table are kept.
+
+    Raises:
+        ValueError: When the frame was rendered without depth maps.
+    """
+    if frame.left_depth is None:
+        raise ValueError('the frame has no depth map: render it with with_maps=True')
+    K = frame.calibration.left.K
+    depth = frame.left_depth[::stride, ::stride]
+    rows, columns = np.nonzero(depth < 0.99 * float(np.max(frame.left_depth)))
+    z = depth[rows, columns]
+    u, v = columns * stride, rows * stride
+    xyz = np.stack([(u - K[0, 2]) / K[0, 0] * z, (v - K[1, 2]) / K[1, 1] * z, z], axis=1)
+    if world_from_camera is not None:
+        # The table (below 2 mm) and what lies outside the workspace box: every selector
+        # drops these points first, so leaving them out changes no result, only the time.
+        world = xyz @ world_from_camera[:3, :3].T + world_from_camera[:3, 3]
+        low, high = np.asarray(workspace[0]), np.asarray(workspace[1])
+        keep = (world[:, 2] > 0.002) & np.all((world >= low) & (world <= high), axis=1)
+        xyz = xyz[keep]
+        z = xyz[:, 2]
+    in_rectified = xyz @ np.asarray(rectified.left.R, dtype=float).T
+    homogeneous = np.column_stack([in_rectified, np.ones(len(z))])
+    left_uvw = homogeneous @ np.asarray(rectified.left.P, dtype=float).T
+    right_uvw = homogeneous @ np.asarray(rectified.right.P, dtype=float).T
+    return MatchedPoints(xyz=xyz.astype(np.float32),
+                         u_left=(left_uvw[:, 0] / left_uvw[:, 2]).astype(np.float32),
+                         v_left=(left_uvw[:, 1] / left_uvw[:, 2]).astype(np.float32),
+                         u_right=(right_uvw[:, 0] / right_uvw[:, 2]).astype(np.float32),
+                         score=np.ones(len(z), dtype=np.float32))
+
+
+@dataclass
+class MatchedDistributionScene:
+    """One distribution scene, matched, with its references.
+
+    Attributes:
+        scene: What was drawn.
+        matched: Per point stride, the matched scene (points as correlation_node gives them).
+        perfect: Per point stride, the same scene with depth-buffer points (empty if not asked).
+        opencv_point: The plain OpenCV pipeline's best point in `world` [m] (None: no point or
+            not asked).
+        matcher: The matcher settings used.
+    """
+
+    scene: DistributionScene
+    matched: dict[int, SyntheticScene]
+    perfect: dict[int, SyntheticScene] = field(default_factory=dict)
+    opencv_point: np.ndarray | None = None
+    matcher: MatcherConfig | None = None
+
+
+def _synthetic(frame: StereoFrame, scene: DistributionScene, points: MatchedPoints,
+               rectified: StereoCalibration) -> SyntheticScene:
+    rig = scene.rig.rig
+    scene_object = frame.ground_truth.scene_object
+    prism = prism_of(scene_object)
+    world = transform_points(rig.world_from_left_camera(), points.xyz.astype(float))
+    return SyntheticScene(points=points, left=rectified.left, right=rectified.right,
+                          target_world=np.asarray(frame.ground_truth.target_world, dtype=float),
+                          object_type=scene_object.object_type.value, rig=rig,
+                          object_points=count_object_points(world, prism), prism=prism)
+
+
+def match_scene(scene: DistributionScene, strides: Iterable[int] = (1,), ceiling: bool = False,
+                opencv: bool = False, settings: DistributionSettings = DEFAULT_SETTINGS,
+                base_matcher: MatcherConfig | None = None) -> MatchedDistributionScene:
+    """Render, match and (if asked) build the ceiling and the OpenCV reference of one scene."""
+    strides = tuple(strides)
+    rig = scene.rig
+    with SceneRenderer(camera=rig.camera, rig=rig.rig, encoding='mono8') as renderer:
+        frame = renderer.render(scene.scene, with_maps=ceiling, lighting=scene.lighting,
+                                sensor=scene.sensor())
+    config = matcher_for(frame.calibration, scene, settings, base_matcher)
+    pipeline = StereoMatchingPipeline(config, point_stride=1)
+    left = to_gray(frame.left, frame.encoding)
+    right = to_gray(frame.right, frame.encoding)
+    result = pipeline.process(left, right, frame.calibration, full_disparity=True)
+    rectified = result.rectified
+    disparity_map = result.disparity_map
+    matched = {stride: _synthetic(frame, scene, triangulate(
+        disparity_map.disparity, disparity_map.score, rectified, stride), rectified)
+        for stride in strides}
+    pose = rig.rig.world_from_left_camera()
+    perfect = ({stride: _synthetic(frame, scene, perfect_points(frame, rectified, stride, pose),
+                                   rectified) for stride in strides} if ceiling else {})
+    opencv_point = None
+    if opencv:
+        reference = OpenCvReference(config.min_disparity, config.disparity_range)
+        opencv_point = reference.best_point(left, right, frame.calibration,
+                                            rig.rig.world_from_left_camera())
+    return MatchedDistributionScene(scene, matched, perfect, opencv_point, config)
+
+
+@dataclass(frozen=True)
+class _Job:
+    planned: PlannedScene
+    strides: tuple[int, ...]
+    ceiling: bool
+    opencv: bool
+    settings: DistributionSettings
+
+
+def _single_threaded() -> None:
+    cv2.setNumThreads(1)
+
+
+def _run(job: _Job) -> MatchedDistributionScene:
+    return match_scene(job.planned.draw(job.settings), job.strides, job.ceiling, job.opencv,
+                       job.settings)
+
+
+def match_plan(plan: Iterable[PlannedScene], strides: Iterable[int] = (1,),
+               ceiling: bool = False, opencv: bool = False, jobs: int = 1,
+               settings: DistributionSettings = DEFAULT_SETTINGS
+               ) -> Iterator[MatchedDistributionScene]:
+    """Yield match_scene of every planned scene, in plan order, on `jobs` processes.
+
+    Each process gets its own pybullet connection; results are the same for any `jobs`.
+    """
+    work = [_Job(planned, tuple(strides), ceiling, opencv, settings) for planned in plan]
+    if jobs <= 1:
+        yield from map(_run, work)
+        return
+    # One thread per process: the processes share the cores instead of oversubscribing them.
+    for variable in ('NUMBA_NUM_THREADS', 'OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS'):
+        os.environ[variable] = '1'
+    context = multiprocessing.get_context('spawn')
+    with context.Pool(jobs, initializer=_single_threaded) as pool:
+        yield from pool.imap(_run, work)
+
+
+def distribution_scenes(plan: Iterable[PlannedScene], stride: int = 1, jobs: int = 1,
+                        settings: DistributionSettings = DEFAULT_SETTINGS
+                        ) -> Iterator[SyntheticScene]:
+    """Yield the matched scenes of a plan at one point stride (for training)."""
+    for matched in match_plan(plan, (stride,), jobs=jobs, settings=settings):
+        yield matched.matched[stride]
+
+
+__all__ = ['MatchedDistributionScene', 'distribution_scenes', 'match_plan', 'match_scene',
+           'matcher_for',
+           'perfect_points']
