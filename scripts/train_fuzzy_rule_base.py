@@ -13,15 +13,19 @@ seeds. Writes stereo_fuzzy_perception/data/fuzzy_fitted.yaml by default.
 
 `--source` names a scene source in synthetic_scenes.SCENE_SOURCES: `geometric` (perfect surface
 samples + disparity noise) or `rendered` (pybullet images through the real correlation stage,
-~0.5 s per scene). On rendered scenes (about 4 min):
+~0.5 s per scene), or `distribution`: the train split of the randomized scene distribution
+(simulation/scene_distribution.py; training rigs only, so
+benchmarks/rig_generalisation_benchmark.py grades on rigs never seen here). The packaged
+fuzzy_fitted.yaml comes from:
 
-    python scripts/train_fuzzy_rule_base.py --source rendered --per-type 80 \
-        --validation-per-type 20 --train-seed 1 --validation-seed 2 --max-residual-mm 10
+    nice python scripts/train_fuzzy_rule_base.py --source distribution --per-type 60 \
+        --validation-per-type 10 --max-residual-mm 10
 """
 
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -63,11 +67,13 @@ def main() -> None:
     start = time.perf_counter()
     scenes = make_training_scenes(parser, args, config)
     train = scenes.train
+    origin = (f'{args.source} source, train split (training rigs), point stride '
+              f'{args.point_stride}' if args.source == 'distribution'
+              else f'{args.source} source, seed {args.train_seed}')
     description = (
         f'chapter structure, consequents = centre of areas {list(base_areas)} + offset fitted '
-        f'by least squares on {len(train)} {args.source} scenes (seed {args.train_seed}, '
-        f'ridge {args.ridge}, max residual {args.max_residual_mm} mm); '
-        'scripts/train_fuzzy_rule_base.py')
+        f'by least squares on {len(train)} scenes ({origin}, ridge {args.ridge}, max residual '
+        f'{args.max_residual_mm} mm); scripts/train_fuzzy_rule_base.py')
     fitted = fit_rule_offsets(with_consequent_areas(template, base_areas), train, args.ridge,
                               name='fitted', description=description)
     camera_pose = scenes.train_scenes[0].rig.world_from_left_camera()
@@ -75,9 +81,7 @@ def main() -> None:
                   for label, rule_base in (('chapter', template), ('fitted', fitted))}, scenes)
     header = (f'Fitted rule base of fuzzy_best_point_node: written by '
               f'scripts/train_fuzzy_rule_base.py\n'
-              f'  --source {args.source} --per-type {args.per_type} --train-seed '
-              f'{args.train_seed} --ridge {args.ridge} --base-areas {args.base_areas}'
-              f' --max-residual-mm {args.max_residual_mm}\n'
+              f'  {shlex.join(sys.argv[1:])}\n'
               'Same structure as fuzzy_chapter.yaml (areas, ratios, membership functions, '
               'Eq. 10);\nconsequent = centre of the listed areas + offset_m [m] in world, '
               'fitted by least squares.')

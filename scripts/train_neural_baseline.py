@@ -12,10 +12,12 @@ seeds. Writes stereo_fuzzy_perception/data/neural_baseline.npz by default.
 
 `--source` names a scene source in synthetic_scenes.SCENE_SOURCES: `geometric` (perfect surface
 samples + disparity noise) or `rendered` (pybullet images through the real correlation stage,
-~0.5 s per scene). On rendered scenes (about 4 min):
+~0.5 s per scene), or `distribution`: the train split of the randomized scene distribution
+(simulation/scene_distribution.py; training rigs only). The packaged neural_baseline.npz
+comes from:
 
-    python scripts/train_neural_baseline.py --source rendered --per-type 80 \
-        --validation-per-type 20 --train-seed 1 --validation-seed 2 --max-residual-mm 10
+    nice python scripts/train_neural_baseline.py --source distribution --per-type 60 \
+        --validation-per-type 10 --max-residual-mm 10
 """
 
 from __future__ import annotations

@@ -138,13 +138,16 @@ def match_scene(scene: DistributionScene, strides: Iterable[int] = (1,), ceiling
         frame = renderer.render(scene.scene, with_maps=ceiling, lighting=scene.lighting,
                                 sensor=scene.sensor())
     config = matcher_for(frame.calibration, scene, settings, base_matcher)
-    pipeline = StereoMatchingPipeline(config, point_stride=1)
+    # One stride: match only its rows, as correlation_node does; several: match every row
+    # once and take each stride's points from the same disparity map (the same points).
+    single = len(set(strides)) == 1
+    pipeline = StereoMatchingPipeline(config, point_stride=strides[0] if single else 1)
     left = to_gray(frame.left, frame.encoding)
     right = to_gray(frame.right, frame.encoding)
-    result = pipeline.process(left, right, frame.calibration, full_disparity=True)
+    result = pipeline.process(left, right, frame.calibration, full_disparity=not single)
     rectified = result.rectified
     disparity_map = result.disparity_map
-    matched = {stride: _synthetic(frame, scene, triangulate(
+    matched = {stride: _synthetic(frame, scene, result.points if single else triangulate(
         disparity_map.disparity, disparity_map.score, rectified, stride), rectified)
         for stride in strides}
     pose = rig.rig.world_from_left_camera()

@@ -19,9 +19,11 @@ from __future__ import annotations
 
 import argparse
 import math
+import pickle
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -192,10 +194,14 @@ class SelectorScore:
 
 def best_point_errors(chooser: BestPointChooser, scenes: Iterable[SyntheticScene]
                       ) -> np.ndarray:
-    """Return (S, 3) errors best point - target [m] per scene (NaN rows: no point)."""
+    """Return (S, 3) errors best point - target [m] per scene (NaN rows: no point).
+
+    Each scene is decided with its own rig's pose (scenes of the distribution differ in rig).
+    """
     errors = []
     for scene in scenes:
-        decision = chooser.decide(scene.points, scene.left, scene.right)
+        posed = replace(chooser, world_from_camera=scene.rig.world_from_left_camera())
+        decision = posed.decide(scene.points, scene.left, scene.right)
         if decision.best_point_world is None:
             errors.append(np.full(3, math.nan))
         else:
@@ -220,15 +226,30 @@ def score_errors(errors: np.ndarray, tolerance_mm: float = 3.0) -> SelectorScore
 
 # --- the training recipe shared by scripts/train_*.py ------------------------------------------
 
+DISTRIBUTION_SOURCE = 'distribution'
+"""`--source` value for the randomized scene distribution (scene_distribution.py)."""
+
 
 def add_recipe_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the scene recipe options both training scripts take (source, counts, seeds)."""
-    parser.add_argument('--source', default='geometric', choices=sorted(SCENE_SOURCES))
+    parser.add_argument('--source', default='geometric',
+                        choices=sorted([*SCENE_SOURCES, DISTRIBUTION_SOURCE]),
+                        help=f'{DISTRIBUTION_SOURCE}: the train and validation splits of '
+                        'simulation/scene_distribution.py (training rigs only; the seeds '
+                        'below are then not used)')
     parser.add_argument('--per-type', type=int, default=300,
                         help='training scenes per object type')
     parser.add_argument('--validation-per-type', type=int, default=60)
     parser.add_argument('--train-seed', type=int, default=1)
     parser.add_argument('--validation-seed', type=int, default=2)
+    parser.add_argument('--point-stride', type=int, default=3,
+                        help=f'{DISTRIBUTION_SOURCE} source: correlation_node point_stride '
+                        "(the demo's)")
+    parser.add_argument('--scene-cache', default='',
+                        help='pickle of the matched scenes: read when it holds this recipe, '
+                        'else written (the second training script then renders nothing)')
+    parser.add_argument('--jobs', type=int, default=2,
+                        help=f'{DISTRIBUTION_SOURCE} source: rendering/matching processes')
     parser.add_argument('--max-residual-mm', type=float, default=math.inf,
                         help='train only on scenes whose target is within this horizontal '
                         'distance of the correlation-area centre (inf: all)')
@@ -249,21 +270,63 @@ def make_training_scenes(parser: argparse.ArgumentParser, args: argparse.Namespa
 
     Exits through parser.error when training and validation would use the same seed.
     """
-    if args.train_seed == args.validation_seed:
-        parser.error('training and validation scenes must come from different seeds')
-    source = SCENE_SOURCES[args.source]()
-    print(f'making {4 * args.per_type} training scenes (seed {args.train_seed}) and '
-          f'{4 * args.validation_per_type} validation scenes (seed {args.validation_seed}) '
-          f'from the {args.source} source')
     start = time.perf_counter()
-    train_scenes = make_scenes(source, args.per_type, args.train_seed)
-    validation_scenes = make_scenes(source, args.validation_per_type, args.validation_seed)
+    recipe = {name: getattr(args, name) for name in (
+        'source', 'per_type', 'validation_per_type', 'train_seed', 'validation_seed',
+        'point_stride')}
+    cache = Path(args.scene_cache) if args.scene_cache else None
+    cached = _read_cache(cache, recipe)
+    if cached is not None:
+        train_scenes, validation_scenes = cached
+        print(f'read {len(train_scenes)} training and {len(validation_scenes)} validation '
+              f'scenes from {cache}')
+    elif args.source == DISTRIBUTION_SOURCE:
+        # Imported here: it loads pybullet, which the geometric source never needs.
+        from stereo_fuzzy_perception.simulation.distribution_source import distribution_scenes
+        from stereo_fuzzy_perception.simulation.scene_distribution import split_plan
+        print(f'making {4 * args.per_type} training scenes and {4 * args.validation_per_type} '
+              'validation scenes from the train and validation splits of the scene '
+              f'distribution (training rigs only), point stride {args.point_stride}')
+        train_scenes = list(distribution_scenes(split_plan('train', args.per_type),
+                                                args.point_stride, args.jobs))
+        validation_scenes = list(distribution_scenes(
+            split_plan('validation', args.validation_per_type), args.point_stride, args.jobs))
+    else:
+        if args.train_seed == args.validation_seed:
+            parser.error('training and validation scenes must come from different seeds')
+        source = SCENE_SOURCES[args.source]()
+        print(f'making {4 * args.per_type} training scenes (seed {args.train_seed}) and '
+              f'{4 * args.validation_per_type} validation scenes (seed '
+              f'{args.validation_seed}) from the {args.source} source')
+        train_scenes = make_scenes(source, args.per_type, args.train_seed)
+        validation_scenes = make_scenes(source, args.validation_per_type,
+                                        args.validation_seed)
+    if cache is not None and cached is None:
+        with cache.open('wb') as stream:
+            pickle.dump((recipe, train_scenes, validation_scenes), stream)
     train = build_training_set(train_scenes, config)
     train = subset(train, inlier_scenes(train, args.max_residual_mm / 1000.0))
     print(f'{len(train)} training scenes used, {train.skipped} left out (no area, or target '
           f'more than {args.max_residual_mm} mm from the area centre)')
     print(f'scenes made in {time.perf_counter() - start:.0f} s')
     return TrainingScenes(train_scenes, validation_scenes, train)
+
+
+def _read_cache(path: Path | None, recipe: dict[str, object]
+                ) -> tuple[list[SyntheticScene], list[SyntheticScene]] | None:
+    """Return the cached (training, validation) scenes when `path` holds `recipe`'s, else None.
+
+    The cache holds matched points (the correlation stage's output), not correlation areas:
+    a changed fuzzy stage is trained on it correctly, a changed matcher needs a new cache.
+    """
+    if path is None or not path.exists():
+        return None
+    with path.open('rb') as stream:
+        stored_recipe, train_scenes, validation_scenes = pickle.load(stream)
+    if stored_recipe != recipe:
+        print(f'{path} holds scenes of another recipe ({stored_recipe}); making them anew')
+        return None
+    return train_scenes, validation_scenes
 
 
 def print_scores(choosers: dict[str, BestPointChooser], scenes: TrainingScenes) -> None:
