@@ -14,7 +14,7 @@ BAGS = sorted(path for path in (REPO_ROOT / 'bags').iterdir()
 
 def test_committed_bags_exist():
     names = {bag.name for bag in BAGS}
-    assert 'demo_scenes' in names, f'bags/ holds {sorted(names)}'
+    assert {'demo_scenes', *HELD_OUT_RIG_BAGS} <= names, f'bags/ holds {sorted(names)}'
 
 
 def test_the_demo_waits_for_every_link_of_the_chain(ros_context):
@@ -54,21 +54,110 @@ def test_the_demo_waits_for_every_link_of_the_chain(ros_context):
         executor.shutdown()
 
 
+# Bags from rigs of the scene distribution that no selector was fitted on: the chain need not
+# find every object there yet (benchmarks/rig_generalisation_benchmark.py has the figures);
+# it must find at least this many of them within DEMO_TOLERANCE_MM, and exactly the best
+# points the same code finds offline on the bag's images (offline_best_points).
+HELD_OUT_RIG_BAGS = {'held_out_rig_scenes': 4}
+
+
+def chain_params(bag: Path) -> Path:
+    """Return the bag's own chain parameters (its rig) if it has them, else the demo's."""
+    from chain.demo import DEFAULT_PARAMS
+
+    own = bag / 'chain_params.yaml'
+    return own if own.exists() else DEFAULT_PARAMS
+
+
+def offline_best_points(bag: Path, params_file: Path) -> dict[int, list[float] | None]:
+    """Return, per scene stamp [ns], the best point the chain's code finds without ROS.
+
+    Reads the bag's images and camera infos, matches them with correlation_node's parameters
+    (StereoMatchingPipeline) and decides with fuzzy_best_point_node's selector and rig.
+    """
+    import yaml
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import CameraInfo, Image
+    from stereo_fuzzy_perception.bag.bag_io import read_messages
+    from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig
+    from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser
+    from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+    from stereo_fuzzy_perception.core.image_encoding import to_gray
+    from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
+    from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
+    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+    from stereo_fuzzy_perception.nodes.conversions import (
+        camera_info_to_calibration,
+        image_to_array,
+        stamp_to_ns,
+    )
+
+    params = yaml.safe_load(params_file.read_text())
+    correlation = params['correlation_node']['ros__parameters']
+    fuzzy = params['fuzzy_best_point_node']['ros__parameters']
+    pipeline = StereoMatchingPipeline(
+        MatcherConfig(min_disparity=int(correlation['min_disparity']),
+                      disparity_range=int(correlation['disparity_range'])),
+        int(correlation.get('point_stride', 1)))
+    chooser = BestPointChooser.create(fuzzy.get('selector', 'fuzzy_fitted'), AreaConfig(),
+                                      StereoRig(**fuzzy['rig']))
+    types = {'/left/image_raw': Image, '/right/image_raw': Image,
+             '/left/camera_info': CameraInfo, '/right/camera_info': CameraInfo}
+    scenes: dict[int, dict[str, object]] = {}
+    for message in read_messages(bag, types):
+        decoded = deserialize_message(message.data, types[message.topic])
+        scenes.setdefault(stamp_to_ns(decoded.header.stamp), {})[message.topic] = decoded
+    points: dict[int, list[float] | None] = {}
+    for stamp, scene in scenes.items():
+        left, right = scene['/left/image_raw'], scene['/right/image_raw']
+        calibration = StereoCalibration(camera_info_to_calibration(scene['/left/camera_info']),
+                                        camera_info_to_calibration(scene['/right/camera_info']))
+        result = pipeline.process(to_gray(image_to_array(left), left.encoding),
+                                  to_gray(image_to_array(right), right.encoding), calibration)
+        decision = chooser.decide(result.points, result.rectified.left, result.rectified.right)
+        point = decision.best_point_world
+        points[stamp] = None if point is None else [float(value) for value in point]
+    return points
+
+
 @pytest.mark.parametrize('bag', BAGS, ids=[bag.name for bag in BAGS])
 def test_bag_through_the_whole_chain(ros_domain_id, tmp_path, bag):
-    from chain.demo import DEFAULT_PARAMS, DEMO_TOLERANCE_MM, DemoRun, format_table
+    from chain.demo import DEMO_TOLERANCE_MM, DemoRun, format_table
 
-    run = DemoRun(bag, DEFAULT_PARAMS, tmp_path / 'demo', DEMO_TOLERANCE_MM, rate=0.5,
+    params_file = chain_params(bag)
+    run = DemoRun(bag, params_file, tmp_path / 'demo', DEMO_TOLERANCE_MM, rate=0.5,
                   timeout_s=300.0, quiet=True)
     results = run.run()
     table = format_table(results)
 
     assert results, 'no object with ground truth was seen: the bag did not play'
+    required = HELD_OUT_RIG_BAGS.get(bag.name)
+    if required is None:
+        for result in results:
+            assert result.best_point is not None, (
+                f'object {result.index}: {result.status}\n{table}')
+            assert result.error_mm <= DEMO_TOLERANCE_MM, (
+                f'object {result.index} best point {result.error_mm:.2f} mm from its ground '
+                f'truth (tolerance {DEMO_TOLERANCE_MM} mm)\n{table}')
+    else:
+        within = [r for r in results if r.error_mm is not None
+                  and r.error_mm <= DEMO_TOLERANCE_MM]
+        assert len(within) >= required, (
+            f'{len(within)} of {len(results)} objects within {DEMO_TOLERANCE_MM} mm, at least '
+            f'{required} expected\n{table}')
+        expected = offline_best_points(bag, params_file)
+        assert sorted(expected) == sorted(result.stamp_ns for result in results), table
+        for result in results:
+            offline = expected[result.stamp_ns]
+            assert (result.best_point is None) == (offline is None), (
+                f'object {result.index}: chain {result.best_point}, offline {offline}\n{table}')
+            if offline is not None:
+                assert result.best_point == pytest.approx(offline, abs=1e-4), (
+                    f'object {result.index}: the chain chose {result.best_point}, the same '
+                    f'code offline {offline} [m]\n{table}')
     for result in results:
-        assert result.best_point is not None, f'object {result.index}: {result.status}\n{table}'
-        assert result.error_mm <= DEMO_TOLERANCE_MM, (
-            f'object {result.index} best point {result.error_mm:.2f} mm from its ground truth '
-            f'(tolerance {DEMO_TOLERANCE_MM} mm)\n{table}')
+        if result.best_point is None:
+            continue
         assert result.final_position is not None, (
             f'object {result.index}: the gantry was never Idle at {result.commanded}\n{table}')
         assert result.gcode_lines, f'object {result.index}: no G-code was sent for it\n{table}'

@@ -18,12 +18,15 @@ Usage:
 from __future__ import annotations
 
 import argparse
+import copy
 import shlex
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+import yaml
 from builtin_interfaces.msg import Time
 from rclpy.serialization import serialize_message
 from rosbags.typesys.store import Typestore
@@ -41,6 +44,11 @@ from stereo_fuzzy_perception.nodes.conversions import (
     array_to_image,
     calibration_to_camera_info,
 )
+from stereo_fuzzy_perception.simulation.scene_distribution import (
+    disparity_search,
+    draw_rig,
+    draw_scene,
+)
 from stereo_fuzzy_perception.simulation.scene_messages import (
     ground_truth_to_marker,
     ground_truth_to_target,
@@ -57,6 +65,7 @@ from stereo_fuzzy_perception.simulation.scene_renderer import (
     SceneRenderer,
     SensorModel,
     StereoFrame,
+    stereo_calibration,
 )
 
 TOPICS = {
@@ -87,6 +96,7 @@ class SceneBagSettings:
     compression_level: int = 19
     period_s: float = 1.0
     start_time_s: float = 1_700_000_000.0
+    distribution_rig: int | None = None
 
     def scene_plan(self) -> list[tuple[int, ObjectType]]:
         """Return (scene seed, object type) of every scene, in bag order."""
@@ -143,7 +153,11 @@ def write_scene_bag(settings: SceneBagSettings, command: str = '') -> int:
         SceneError: When a scene cannot be placed in view of the rig.
     """
     plan = settings.scene_plan()
-    with SceneRenderer(camera=settings.camera, rig=settings.rig, sensor=settings.sensor,
+    drawn_rig = (None if settings.distribution_rig is None
+                 else draw_rig(settings.distribution_rig))
+    camera = settings.camera if drawn_rig is None else drawn_rig.camera
+    rig = settings.rig if drawn_rig is None else drawn_rig.rig
+    with SceneRenderer(camera=camera, rig=rig, sensor=settings.sensor,
                        encoding=settings.encoding) as renderer, \
             BagWriter(settings.output, compression=settings.compression,
                       compression_level=settings.compression_level) as bag:
@@ -152,9 +166,13 @@ def write_scene_bag(settings: SceneBagSettings, command: str = '') -> int:
         if command:
             bag.set_custom_data('render_scenes', command)
         for index, (scene_seed, object_type) in enumerate(plan):
-            scene = random_scene(scene_seed, object_type, rig=settings.rig,
-                                 camera=settings.camera)
-            frame = renderer.render(scene)
+            if drawn_rig is None:
+                frame = renderer.render(random_scene(scene_seed, object_type, rig=rig,
+                                                     camera=camera))
+            else:
+                drawn = draw_scene('bag', scene_seed, drawn_rig, object_type)
+                frame = renderer.render(drawn.scene, lighting=drawn.lighting,
+                                        sensor=drawn.sensor())
             stamp_ns = round(settings.start_time_s * 1e9) + round(index * settings.period_s * 1e9)
             for order, (topic, data) in enumerate(frame_messages(frame, stamp_ns)):
                 bag.write(topic, stamp_ns + 1000 * order,
@@ -196,6 +214,18 @@ def build_parser() -> argparse.ArgumentParser:
     sensor.add_argument('--right-offset', type=float, default=0.0, help='[grey levels]')
     sensor.add_argument('--distortion', type=float, nargs=5, default=[0.0] * 5,
                         metavar=('K1', 'K2', 'P1', 'P2', 'K3'), help='plumb_bob coefficients')
+    distribution = parser.add_argument_group(
+        'scene distribution (simulation/scene_distribution.py)')
+    distribution.add_argument(
+        '--distribution-rig', type=int, default=None, metavar='INDEX',
+        help="rig INDEX of the distribution's rig pool; each scene then draws its textures, "
+        'light, noise and right gain/offset from the distribution (draw_scene with seed '
+        'seed * 10000 + k); replaces the camera, rig and sensor options')
+    distribution.add_argument(
+        '--chain-params', type=Path, default=None, metavar='TEMPLATE',
+        help='with --distribution-rig: write OUTPUT/chain_params.yaml, TEMPLATE (e.g. '
+        "chain/demo_params.yaml) with the rig's correlation_node disparity search and "
+        'fuzzy_best_point_node rig.* parameters')
     output = parser.add_argument_group('bag')
     output.add_argument('--compression', choices=COMPRESSIONS, default='zstd',
                         help='MCAP chunk compression')
@@ -220,7 +250,25 @@ def settings_from_arguments(args: argparse.Namespace) -> SceneBagSettings:
                            right_offset=args.right_offset, distortion=tuple(args.distortion)),
         encoding=args.encoding, compression=args.compression,
         compression_level=args.compression_level, period_s=args.period,
-        start_time_s=args.start_time)
+        start_time_s=args.start_time, distribution_rig=args.distribution_rig)
+
+
+def chain_parameters(template: dict[str, Any], rig_index: int) -> dict[str, Any]:
+    """Return `template` (a chain parameter file) set up for rig `rig_index` of the pool.
+
+    correlation_node gets the rig's disparity search (scene_distribution.disparity_search),
+    fuzzy_best_point_node its pose (rig.*); everything else stays as in the template.
+    """
+    drawn = draw_rig(rig_index)
+    calibration = stereo_calibration(drawn.camera, drawn.rig)
+    low, span = disparity_search(calibration, drawn.rig, drawn.camera)
+    result = copy.deepcopy(template)
+    correlation = result.setdefault('correlation_node', {}).setdefault('ros__parameters', {})
+    correlation.update(min_disparity=low, disparity_range=span)
+    fuzzy = result.setdefault('fuzzy_best_point_node', {}).setdefault('ros__parameters', {})
+    fuzzy['rig'] = {name: float(getattr(drawn.rig, name)) for name in (
+        'baseline_m', 'alpha_deg', 'theta_deg', 'x0_m', 'y0_m', 'z0_m', 'vergence_deg')}
+    return result
 
 
 def describe_command(arguments: Sequence[str]) -> str:
@@ -243,10 +291,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(arguments)
     if args.scenes_per_type < 1 or args.period <= 0.0:
         raise SystemExit('render_scenes: --scenes-per-type must be >= 1 and --period > 0')
+    if args.chain_params is not None and args.distribution_rig is None:
+        raise SystemExit('render_scenes: --chain-params needs --distribution-rig')
     try:
         write_scene_bag(settings_from_arguments(args), command=describe_command(arguments))
     except (BagError, SceneError) as error:
         raise SystemExit(f'render_scenes: {error}') from None
+    if args.chain_params is not None:
+        template = yaml.safe_load(args.chain_params.read_text())
+        parameters = chain_parameters(template, args.distribution_rig)
+        header = (f'# Chain parameters for this bag: {args.chain_params.name} with rig '
+                  f"{args.distribution_rig} of the scene distribution's pool\n"
+                  f'# ({draw_rig(args.distribution_rig).describe()}), written by\n'
+                  f'#   {describe_command(arguments)}\n')
+        (args.output / 'chain_params.yaml').write_text(
+            header + yaml.safe_dump(parameters, sort_keys=False))
     print(format_info(read_info(args.output)))
     return 0
 
