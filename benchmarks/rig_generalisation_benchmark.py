@@ -17,7 +17,10 @@ Per scene (rendered once, matched once, at every --point-stride):
   (`ceiling:` rows): the gap between a selector and its ceiling is the matcher's loss, the gap
   between the ceiling and 0 the selector's own;
 * a plain OpenCV pipeline (opencv_reference.py: StereoSGBM + height mask + largest connected
-  component + top band, centroid) on the same pair; it uses every pixel whatever the stride.
+  component + top band, centroid) on the same pair; it uses every pixel whatever the stride;
+* a diagnosis row: the centroid of the matched points that the ground truth puts on the top
+  face (over its footprint, within 4 mm of its height). It is no selector (it knows the
+  answer); it separates the matcher's noise on the top face from the loss of finding it.
 
 A best point succeeds within --tolerance-mm (3D) of the centre of the top face; no point is a
 miss. Mean and max are over the scenes with a point.
@@ -49,7 +52,7 @@ for variable in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
 import numpy as np  # noqa: E402
 from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig  # noqa: E402
 from stereo_fuzzy_perception.core.best_point.point_selectors import SELECTORS, BestPointChooser  # noqa: E402
-from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig, transform_points  # noqa: E402
 from stereo_fuzzy_perception.simulation.distribution_source import (  # noqa: E402
     MatchedDistributionScene,
     match_plan,
@@ -66,6 +69,7 @@ from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene  
 SELECTOR_ORDER = ('fuzzy_fitted', 'fuzzy_chapter', 'centroid', 'max_score', 'neural_network')
 assert set(SELECTOR_ORDER) == set(SELECTORS)
 OPENCV_ROW = 'opencv (SGBM + largest component + top band)'
+ORACLE_ROW = 'diagnosis: centroid of matched points on the true top face (knows the answer)'
 GOALS = {'within': 95.0, 'mean': 1.5, 'max': 10.0}
 TYPE_TITLES = {'circle': 'Circle', 'cylinder': 'Cylinder', 'cubic_rectangle': 'Cubic Rectangle',
                'cubic_square': 'Cubic Square'}
@@ -104,7 +108,27 @@ def grade(matched: MatchedDistributionScene, choosers: dict[str, BestPointChoose
                                                          matched.perfect[stride])
         errors[(OPENCV_ROW, stride)] = (np.full(3, np.nan) if matched.opencv_point is None
                                         else matched.opencv_point - target)
+        errors[(ORACLE_ROW, stride)] = oracle_top_point(scene) - target
     return errors
+
+
+def oracle_top_point(scene: SyntheticScene) -> np.ndarray:
+    """Return mean x, y and median z of the matched points the ground truth puts on the top.
+
+    A diagnosis, not a selector: those points lie over the object's true footprint and within
+    the top band (AreaConfig.top_band_m) of its true height, as `ceiling: centroid` takes them
+    from perfect points. The gap to that row is the matcher's noise and bias on the top face
+    given a perfect segmentation; what a selector loses beyond this row, it loses finding the
+    object and its top.
+    """
+    world = transform_points(scene.rig.world_from_left_camera(), scene.points.xyz.astype(float))
+    prism = scene.prism
+    band = AreaConfig().top_band_m
+    on_top = (np.abs(world[:, 2] - prism.height) <= band) & prism.contains_xy(world[:, :2])
+    if not on_top.any():
+        return np.full(3, np.nan)
+    top = world[on_top]
+    return np.array([top[:, 0].mean(), top[:, 1].mean(), float(np.median(top[:, 2]))])
 
 
 def summary(errors_m: np.ndarray, tolerance_mm: float) -> tuple[float, float, float, int]:
@@ -188,7 +212,8 @@ def main() -> None:
         args.per_type, args.point_stride = 6, [3]
     strides = sorted(set(args.point_stride))
     choosers = base_choosers(args.compare)
-    rows = [*choosers, *(f'ceiling: {name}' for name in SELECTOR_ORDER), OPENCV_ROW]
+    rows = [*choosers, *(f'ceiling: {name}' for name in SELECTOR_ORDER), OPENCV_ROW,
+            ORACLE_ROW]
     results: dict[tuple[str, int], dict[str, list[np.ndarray]]] = {
         (row, stride): {kind.value: [] for kind in OBJECT_TYPES}
         for row in rows for stride in strides}

@@ -214,3 +214,48 @@ def test_the_opencv_reference_finds_the_top_of_a_plain_scene():
     assert point is not None
     error_mm = 1000.0 * np.linalg.norm(point - frame.ground_truth.target_world)
     assert error_mm < 5.0, f'OpenCV reference {error_mm:.2f} mm from the top-face centre'
+
+
+def test_chain_parameters_give_the_nodes_the_rig_and_its_disparity_search():
+    from stereo_fuzzy_perception.simulation.scene_bag_writer import chain_parameters
+    from stereo_fuzzy_perception.simulation.scene_distribution import draw_rig
+    from stereo_fuzzy_perception.simulation.scene_renderer import stereo_calibration
+
+    template = {'correlation_node': {'ros__parameters': {'point_stride': 3}},
+                'gantry_driver_node': {'ros__parameters': {'approach_offset_m': 0.0}}}
+    parameters = chain_parameters(template, 31)
+    drawn = draw_rig(31)
+    low, span = disparity_search(stereo_calibration(drawn.camera, drawn.rig), drawn.rig,
+                                 drawn.camera)
+    assert parameters['correlation_node']['ros__parameters'] == {
+        'point_stride': 3, 'min_disparity': low, 'disparity_range': span}
+    assert StereoRig(**parameters['fuzzy_best_point_node']['ros__parameters']['rig']) \
+        == drawn.rig
+    assert parameters['gantry_driver_node'] == template['gantry_driver_node']
+    assert 'fuzzy_best_point_node' not in template, 'the template was changed'
+
+
+def test_render_scenes_from_a_distribution_rig_is_reproducible(tmp_path):
+    import yaml
+    from stereo_fuzzy_perception.bag.bag_io import read_info, read_messages
+    from stereo_fuzzy_perception.simulation.scene_bag_writer import main
+
+    template = tmp_path / 'template.yaml'
+    template.write_text('correlation_node:\n  ros__parameters:\n    point_stride: 3\n')
+    arguments = ['--distribution-rig', '32', '--types', 'circle', '--scenes-per-type', '1',
+                 '--seed', '5', '--encoding', 'mono8', '--chain-params', str(template)]
+    for name in ('a', 'b'):
+        assert main(['-o', str(tmp_path / name), *arguments]) == 0
+    first, second = (list(read_messages(tmp_path / name)) for name in ('a', 'b'))
+    assert [m.data for m in first] == [m.data for m in second]
+    assert read_info(tmp_path / 'a').message_count == 6
+    parameters = yaml.safe_load((tmp_path / 'a' / 'chain_params.yaml').read_text())
+    assert parameters['fuzzy_best_point_node']['ros__parameters']['rig']['z0_m'] == \
+        pytest.approx(rig_pool()[32].rig.z0_m)
+
+
+def test_render_scenes_refuses_chain_params_without_a_distribution_rig(tmp_path):
+    from stereo_fuzzy_perception.simulation.scene_bag_writer import main
+
+    with pytest.raises(SystemExit, match='--chain-params needs --distribution-rig'):
+        main(['-o', str(tmp_path / 'bag'), '--chain-params', 'chain/demo_params.yaml'])
