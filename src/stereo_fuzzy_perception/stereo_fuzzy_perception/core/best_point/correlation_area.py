@@ -28,6 +28,7 @@ import numpy as np
 from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     choose_object,
     grid_step,
+    grown_region,
     image_regions,
     smoothed_on_grid,
     top_height,
@@ -129,6 +130,8 @@ class CorrelationArea:
         v_left: (M,) [px].
         u_right: (M,) [px].
         score: (M,) correlation scores.
+        weight: (M,) share of the top face each point stands for (mean 1): matches are
+            denser where the face is nearer, so an unweighted mean leans toward the cameras.
         surface: The work surface and the pair's disparity noise.
         object_height_sigmas: Median height of the object's region in sigmas (NaN: none).
     """
@@ -145,8 +148,13 @@ class CorrelationArea:
     v_left: np.ndarray
     u_right: np.ndarray
     score: np.ndarray
+    weight: np.ndarray | None = None
     surface: SurfacePlane = ASSUMED_SURFACE
     object_height_sigmas: float = math.nan
+
+    def point_weights(self) -> np.ndarray:
+        """Return the points' weights (ones when none were given)."""
+        return np.ones(len(self.u_left)) if self.weight is None else self.weight
 
     @property
     def ok(self) -> bool:
@@ -217,7 +225,7 @@ def warm_up() -> None:
                                  np.eye(4), AreaConfig(min_points=1))
     if not area.ok:
         area = CorrelationArea(STATUS_OK, '', len(grid), len(grid), 1, len(grid), 0.02, grid,
-                               pixels, pixels, pixels, pixels)
+                               pixels, pixels, pixels, pixels, np.ones(len(grid)))
     split_into_areas(area, (0.0, 0.0), (0.0, 0.0))
 
 
@@ -269,7 +277,8 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                 regions: int = 0, sigmas: float = math.nan) -> CorrelationArea:
         empty = np.zeros(0)
         return CorrelationArea(status, why, points_in, valid, regions, 0, math.nan,
-                               np.zeros((0, 3)), empty, empty, empty, empty, surface, sigmas)
+                               np.zeros((0, 3)), empty, empty, empty, empty, empty, surface,
+                               sigmas)
 
     if valid == 0:
         return refused(NO_POINTS, f'none of {points_in} matched points is finite, in front of '
@@ -306,16 +315,28 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                                   + detail, surface, regions, found.median_sigmas)
     member = labels == found.label
     top = top_height(heights[member], sigma[member])
-    band = np.flatnonzero(member & (np.abs(heights - top) <= config.top_band_sigmas * sigma))
+    # The face: points near the region, within the band of the top, whose neighbourhood
+    # stands at least half as high. Half height is where the averaging square sits half on
+    # the face, so the face's rim is found where it is, not where noise cut the region; the
+    # surface around a low object and the foot of a side wall stay out even when their noise
+    # reaches the band.
+    near = grown_region(u_left, v_left, member, step, config.smoothing_px)
+    band = np.flatnonzero(near & (heights - top <= config.top_band_sigmas * sigma)
+                          & (top - heights <= 0.5 * config.top_band_sigmas * sigma)
+                          & (smoothed * per_px >= 0.5 * top))
     used = len(band)
     if used < config.min_points:
         return refused(TOO_FEW_POINTS, f"{used} points on the object's top face, need "
                                        f'min_points={config.min_points}', surface, regions,
                        found.median_sigmas)
     xyz_world = np.ascontiguousarray(world[:, band].T)
+    # A match stands for the patch of the face its pixel sees, Z_rect^3 / (f^2 |n . v|):
+    # |n . v| is the same for every point of a level face and Z_rect is f B / d.
+    weight = disparity[band] ** -3.0
+    weight /= weight.mean()
     return CorrelationArea(STATUS_OK, '', points_in, valid, regions, used,
                            float(np.median(xyz_world[:, 2])), xyz_world, u_left[band],
-                           v_left[band], u_right[band], score[band], surface,
+                           v_left[band], u_right[band], score[band], weight, surface,
                            found.median_sigmas)
 
 
@@ -337,6 +358,7 @@ class FourAreas:
         centres_v_left: (4,) [px].
         centres_u_right: (4,) [px].
         counts: (4,) points per area.
+        weights: (4,) sum of the points' weights per area (CorrelationArea.weight).
         d1: (4,) distance of each centre from the left principal point [px].
         d2: (4,) distance of each centre from the right principal point [px].
         ratio: (4,) r = d1 / d2.
@@ -352,6 +374,7 @@ class FourAreas:
     centres_v_left: np.ndarray
     centres_u_right: np.ndarray
     counts: np.ndarray
+    weights: np.ndarray
     d1: np.ndarray
     d2: np.ndarray
     ratio: np.ndarray
@@ -362,10 +385,11 @@ class FourAreas:
         return self.status == STATUS_OK
 
     def union_centre(self, areas: tuple[int, ...]) -> np.ndarray:
-        """Return the centre [m] of the union of `areas` (numbered 1..4): count-weighted."""
+        """Return the centre [m] of the union of `areas` (numbered 1..4): weighted like its
+        points."""
         index = np.asarray(areas, dtype=int) - 1
-        counts = self.counts[index].astype(float)
-        return np.asarray((counts @ self.centres[index]) / counts.sum())
+        weights = self.weights[index]
+        return np.asarray((weights @ np.nan_to_num(self.centres[index])) / weights.sum())
 
 
 @numba.njit(cache=True, nogil=True)
@@ -382,14 +406,14 @@ def _precedes(first: int, second: int, u: np.ndarray, v: np.ndarray, world: np.n
 
 
 @numba.njit(cache=True, nogil=True)
-def _area_sums(u: np.ndarray, v: np.ndarray, u_right: np.ndarray, world: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+def _area_sums(u: np.ndarray, v: np.ndarray, u_right: np.ndarray, world: np.ndarray,
+               weight: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
     """Border points and per-area sums of a correlation area in two passes.
 
     Returns:
         border (4,): indices of min u, max u, min v, max v, ties broken by the smallest
             (u, v, x, y, z) so that input order cannot matter; counts (4,) per area; sums
-            (4, 6) of x, y, z, u, v, u_right per area; u_mid; v_mid.
+            (4, 7) of weighted x, y, z, u, v, u_right and the weights per area; u_mid; v_mid.
     """
     u_min = u_max = u[0]
     v_min = v_max = v[0]
@@ -401,7 +425,7 @@ def _area_sums(u: np.ndarray, v: np.ndarray, u_right: np.ndarray, world: np.ndar
     extremes = (u_min, u_max, v_min, v_max)
     border = np.full(4, -1, np.int64)
     counts = np.zeros(4, np.int64)
-    sums = np.zeros((4, 6))
+    sums = np.zeros((4, 7))
     for index in range(len(u)):
         for slot in range(4):
             key = u[index] if slot < 2 else v[index]
@@ -410,11 +434,13 @@ def _area_sums(u: np.ndarray, v: np.ndarray, u_right: np.ndarray, world: np.ndar
                 border[slot] = index
         area = 2 * int(u[index] >= u_mid) + int(v[index] >= v_mid)  # 0..3: areas 1..4
         counts[area] += 1
+        w = weight[index]
         for axis in range(3):
-            sums[area, axis] += world[index, axis]
-        sums[area, 3] += u[index]
-        sums[area, 4] += v[index]
-        sums[area, 5] += u_right[index]
+            sums[area, axis] += w * world[index, axis]
+        sums[area, 3] += w * u[index]
+        sums[area, 4] += w * v[index]
+        sums[area, 5] += w * u_right[index]
+        sums[area, 6] += w
     return border, counts, sums, u_mid, v_mid
 
 
@@ -433,12 +459,13 @@ def split_into_areas(area: CorrelationArea, left_principal: tuple[float, float],
         have NaN centres and ratios.
     """
     u, v, world = area.u_left, area.v_left, area.xyz_world
-    border, counts, sums, u_mid, v_mid = _area_sums(u, v, area.u_right, world)
+    border, counts, sums, u_mid, v_mid = _area_sums(u, v, area.u_right, world,
+                                                    area.point_weights())
     border_points = world[border]
     border_distances = np.array([math.dist(border_points[i], border_points[j])
                                  for i, j in BORDER_PAIRS])
     with np.errstate(invalid='ignore', divide='ignore'):
-        means = sums / counts[:, np.newaxis]  # NaN for an empty area
+        means = sums[:, :6] / sums[:, 6:]  # NaN for an empty area
         centres = np.ascontiguousarray(means[:, :3])
         cu, cv, cur = means[:, 3].copy(), means[:, 4].copy(), means[:, 5].copy()
         d1 = np.hypot(cu - left_principal[0], cv - left_principal[1])
@@ -454,6 +481,6 @@ def split_into_areas(area: CorrelationArea, left_principal: tuple[float, float],
             'split into four areas')
     elif not np.any(np.isfinite(ratio)):
         status, reason = DEGENERATE_AREA, 'every area centre sits on the right principal point'
-    centre = sums[:, :3].sum(axis=0) / len(u)
+    centre = sums[:, :3].sum(axis=0) / sums[:, 6].sum()
     return FourAreas(status, reason, border_points, border_distances, centre, centres, cu, cv,
-                     cur, counts, d1, d2, ratio)
+                     cur, counts, sums[:, 6].copy(), d1, d2, ratio)

@@ -84,6 +84,26 @@ def smoothed_on_grid(u: np.ndarray, v: np.ndarray, values: np.ndarray, step: flo
     return mean
 
 
+def grown_region(u: np.ndarray, v: np.ndarray, member: np.ndarray, step: float,
+                 size_px: float) -> np.ndarray:
+    """Return the points within a square of size_px around any member, in the image grid.
+
+    Args:
+        u: (N,) left image column of every match [px], N > 0.
+        v: (N,) row [px].
+        member: (N,) bool, the region.
+        step: Grid spacing [px] (grid_step).
+        size_px: Side of the square [px].
+    """
+    cells, shape = _grid_cells(u, v, step)
+    grid = np.zeros(shape[0] * shape[1], dtype=bool)
+    grid[cells[member]] = True
+    size = max(1, int(round(size_px / step)) | 1)
+    grown = ndimage.maximum_filter(grid.reshape(shape), size, mode='constant')
+    inside: np.ndarray = grown.reshape(-1)[cells]
+    return inside
+
+
 def image_regions(u: np.ndarray, v: np.ndarray, candidate: np.ndarray, step: float
                   ) -> tuple[np.ndarray, int]:
     """Label candidates connected in the image grid of the matches.
@@ -177,3 +197,4 @@ def top_height(heights: np.ndarray, sigmas: np.ndarray) -> float:
             break
         level = float(np.median(near))
     return level
+
