@@ -24,8 +24,9 @@ from stereo_fuzzy_parameters.spec import ParameterValue
 from stereo_msgs.msg import DisparityImage
 
 from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
-from stereo_fuzzy_perception.core.camera_model import CalibrationError
+from stereo_fuzzy_perception.core.camera_model import CalibrationError, StereoCalibration
 from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError
+from stereo_fuzzy_perception.core.matching.disparity_range import DisparityRangeError
 from stereo_fuzzy_perception.core.matching.rectification import RectificationError
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
 from stereo_fuzzy_perception.core.matching.window_matcher import MatcherInputError, warm_up
@@ -39,7 +40,9 @@ from stereo_fuzzy_perception.nodes.conversions import (
 from stereo_fuzzy_perception.nodes.correlation_parameters import (
     PARAMETERS,
     config_problem,
+    derives_disparities,
     matcher_config,
+    with_derived_disparities,
 )
 
 DROP_REASONS = ('superseded', 'calibration', 'size_mismatch', 'encoding', 'matcher_input',
@@ -55,6 +58,8 @@ class CorrelationNode(Node):
                                              apply=self._apply_parameters)
         self.pipeline = StereoMatchingPipeline(matcher_config(self.parameters),
                                                int(self.parameters['point_stride']))
+        # disparity_range 0: the range derived for the last calibration seen
+        self._derived_for: StereoCalibration | None = None
         input_qos = QoSProfile(depth=qos.RESULTS.depth, history=qos.RESULTS.history,
                                durability=qos.RESULTS.durability,
                                reliability=qos.reliability_from_name(
@@ -87,12 +92,15 @@ class CorrelationNode(Node):
                           self._publish_diagnostics)
         self.get_logger().info(
             f'correlation_node started: {self.pipeline.config.method}, window '
-            f'{self.pipeline.config.window_size}, disparities {self.pipeline.config.min_disparity}'
-            f'..{self.pipeline.config.max_disparity}')
+            f'{self.pipeline.config.window_size}, disparities '
+            + ('from the calibration, rig pose and workspace box'
+               if derives_disparities(self.parameters) else
+               f'{self.pipeline.config.min_disparity}..{self.pipeline.config.max_disparity}'))
 
     # --- parameters and input -----------------------------------------------------------------
 
     def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
+        self._derived_for = None
         self.pipeline.config = matcher_config(values)
         self.pipeline.point_stride = int(values['point_stride'])  # type: ignore[arg-type]
         self.get_logger().info(f'matcher settings now {self.pipeline.config}')
@@ -141,6 +149,7 @@ class CorrelationNode(Node):
         try:
             left, right, calibration = stereo_pair_to_domain(pair)
             calibration.require_valid()
+            self._derive_disparities(calibration)
             if left.shape != right.shape:
                 raise RectificationError(
                     f'left image is {left.shape[1]}x{left.shape[0]} but right image is '
@@ -153,7 +162,7 @@ class CorrelationNode(Node):
         except ImageEncodingError as error:
             self._drop('encoding', str(error))
             return
-        except CalibrationError as error:
+        except (CalibrationError, DisparityRangeError) as error:
             self._drop('calibration', str(error))
             return
         except RectificationError as error:
@@ -188,6 +197,25 @@ class CorrelationNode(Node):
         self.get_logger().debug(
             f'pair matched: {len(result.points)} points, '
             + ', '.join(f'{name} {ms:.1f} ms' for name, ms in timings.items()))
+
+    def _derive_disparities(self, calibration: StereoCalibration) -> None:
+        """With disparity_range 0, search the workspace box's disparities for this calibration.
+
+        Raises:
+            DisparityRangeError: When the box is not in view of both cameras.
+        """
+        values = self.parameters
+        if not derives_disparities(values) or (
+                self._derived_for is not None
+                and self._derived_for.left.same_as(calibration.left)
+                and self._derived_for.right.same_as(calibration.right)):
+            return
+        config = with_derived_disparities(matcher_config(values), values, calibration)
+        self.pipeline.config = config
+        self._derived_for = calibration
+        self.get_logger().info(
+            f'disparities {config.min_disparity}..{config.max_disparity} px derived from the '
+            'calibration, the rig pose and the workspace box')
 
     def _drop(self, reason: str, text: str) -> None:
         with self._condition:

@@ -3,20 +3,38 @@
 The matcher parameters mirror correlation.MatcherConfig (whose defaults they take) and can be
 changed at run time; `matcher_config` builds the config and `config_problem` is the node's
 validate hook, so an invalid combination (an even window, say) is refused with the reason.
+disparity_range 0 (the default) derives the search range from the calibration, the rig pose
+and the workspace box (`with_derived_disparities`; the rig.* and workspace.* specs are the
+ones fuzzy_best_point_node declares, rig_parameters.py).
 """
 
 from __future__ import annotations
 
+import dataclasses
+
 from stereo_fuzzy_parameters.spec import ParameterSpec, ParameterValue
 
+from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+from stereo_fuzzy_perception.core.matching.disparity_range import (
+    MARGIN_PX,
+    workspace_disparity_range,
+)
 from stereo_fuzzy_perception.core.matching.window_matcher import (
     METHODS,
     PREPROCESS_MODES,
     MatcherConfig,
     MatcherConfigError,
 )
+from stereo_fuzzy_perception.nodes.rig_parameters import (
+    RIG_PARAMETERS,
+    WORKSPACE_PARAMETERS,
+    stereo_rig,
+    workspace_box,
+)
 
 _DEFAULT = MatcherConfig()
+AUTO_DISPARITY_RANGE = 0
+"""disparity_range value that asks for the range derived from the geometry."""
 
 PARAMETERS = [
     ParameterSpec('method', _DEFAULT.method,
@@ -25,11 +43,13 @@ PARAMETERS = [
     ParameterSpec('window_size', _DEFAULT.window_size,
                   'Side of the square correlation window [px], odd', minimum=3, maximum=31),
     ParameterSpec('min_disparity', _DEFAULT.min_disparity,
-                  'Smallest disparity searched [px] (left x minus right x)',
-                  minimum=-512, maximum=512),
-    ParameterSpec('disparity_range', _DEFAULT.disparity_range,
+                  'Smallest disparity searched [px] (left x minus right x); unused while '
+                  'disparity_range is 0', minimum=-512, maximum=512),
+    ParameterSpec('disparity_range', AUTO_DISPARITY_RANGE,
                   'Number of disparities searched [px]; the largest is min_disparity + '
-                  'disparity_range - 1', minimum=1, maximum=512),
+                  'disparity_range - 1. 0 = derive both from the calibration, the rig.* pose and '
+                  'the workspace.* box (the disparities of the box in view of both cameras, '
+                  f'{MARGIN_PX} px margin)', minimum=0, maximum=512),
     ParameterSpec('min_score', _DEFAULT.min_score,
                   'Lowest accepted correlation score at the best disparity [-]',
                   minimum=-1.0, maximum=1.0),
@@ -74,6 +94,9 @@ PARAMETERS = [
     ParameterSpec('error_log_period_s', 5.0,
                   'Shortest interval between two error logs of the same kind [s]',
                   minimum=0.0, maximum=3600.0, read_only=True),
+    # --- where the workspace is: for disparity_range 0 (the same specs as fuzzy_best_point_node)
+    *WORKSPACE_PARAMETERS,
+    *RIG_PARAMETERS,
 ]
 
 MATCHER_PARAMETERS = ('method', 'window_size', 'min_disparity', 'disparity_range', 'min_score',
@@ -81,8 +104,16 @@ MATCHER_PARAMETERS = ('method', 'window_size', 'min_disparity', 'disparity_range
                       'preprocess', 'roi.x', 'roi.y', 'roi.width', 'roi.height')
 
 
+def derives_disparities(values: dict[str, ParameterValue]) -> bool:
+    """Return True when the disparity search range is derived from the geometry."""
+    return int(values['disparity_range']) == AUTO_DISPARITY_RANGE  # type: ignore[arg-type]
+
+
 def matcher_config(values: dict[str, ParameterValue]) -> MatcherConfig:
     """Build the MatcherConfig from parameter values by name.
+
+    With disparity_range 0 the disparities are the defaults' until `with_derived_disparities`
+    replaces them for a calibration.
 
     Raises:
         MatcherConfigError: When the values do not make a valid configuration.
@@ -91,7 +122,8 @@ def matcher_config(values: dict[str, ParameterValue]) -> MatcherConfig:
         method=str(values['method']),
         window_size=int(values['window_size']),  # type: ignore[arg-type]
         min_disparity=int(values['min_disparity']),  # type: ignore[arg-type]
-        disparity_range=int(values['disparity_range']),  # type: ignore[arg-type]
+        disparity_range=(_DEFAULT.disparity_range if derives_disparities(values)
+                         else int(values['disparity_range'])),  # type: ignore[arg-type]
         min_score=float(values['min_score']),  # type: ignore[arg-type]
         texture_threshold=float(values['texture_threshold']),  # type: ignore[arg-type]
         uniqueness_ratio=float(values['uniqueness_ratio']),  # type: ignore[arg-type]
@@ -101,6 +133,20 @@ def matcher_config(values: dict[str, ParameterValue]) -> MatcherConfig:
         roi=(int(values['roi.x']), int(values['roi.y']),  # type: ignore[arg-type]
              int(values['roi.width']), int(values['roi.height'])),  # type: ignore[arg-type]
     )
+
+
+def with_derived_disparities(config: MatcherConfig, values: dict[str, ParameterValue],
+                             calibration: StereoCalibration) -> MatcherConfig:
+    """Return `config` searching the disparities of the workspace box for this calibration.
+
+    Raises:
+        DisparityRangeError: When no part of the box is in view of both cameras.
+    """
+    low, high = workspace_box(values)
+    derived = workspace_disparity_range(calibration, stereo_rig(values).world_from_left_camera(),
+                                        low, high)
+    return dataclasses.replace(config, min_disparity=derived.min_disparity,
+                               disparity_range=derived.disparity_range)
 
 
 def config_problem(values: dict[str, ParameterValue]) -> str | None:

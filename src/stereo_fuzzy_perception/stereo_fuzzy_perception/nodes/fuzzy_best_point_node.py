@@ -28,6 +28,7 @@ from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
 from stereo_fuzzy_perception.core.best_point import correlation_area
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     DEGENERATE_AREA,
+    NO_OBJECT,
     NO_POINTS,
     NO_RULE_FIRED,
     STATUS_OK,
@@ -57,7 +58,8 @@ BEST_POINT_TOPIC = 'best_point'
 DECISION_TOPIC = 'best_point/decision'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 MALFORMED_INPUT = 'malformed_input'
-REFUSAL_REASONS = (NO_POINTS, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED, MALFORMED_INPUT)
+REFUSAL_REASONS = (NO_POINTS, NO_OBJECT, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED,
+                   MALFORMED_INPUT)
 ERROR_THROTTLE_S = 5.0
 
 

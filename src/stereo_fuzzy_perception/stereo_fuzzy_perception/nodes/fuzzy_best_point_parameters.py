@@ -9,10 +9,14 @@ from stereo_fuzzy_parameters.spec import ParameterSpec, ParameterValue
 
 from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig
 from stereo_fuzzy_perception.core.best_point.point_selectors import SELECTORS
-from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+from stereo_fuzzy_perception.nodes.rig_parameters import (
+    RIG_PARAMETERS,
+    WORKSPACE_PARAMETERS,
+    stereo_rig,
+    workspace_box,
+)
 
 _AREA = AreaConfig()
-_RIG = StereoRig()
 
 PARAMETERS = [
     ParameterSpec('selector', 'fuzzy_fitted', 'How the best point is chosen',
@@ -23,46 +27,29 @@ PARAMETERS = [
     ParameterSpec('network_file', '',
                   'Weights (.npz) of the neural_network selector; empty = '
                   'data/neural_baseline.npz'),
-    # --- correlation area (step 1)
-    ParameterSpec('workspace.min_x', _AREA.workspace_min[0],
-                  'Workspace box lower x in world [m]', -10.0, 10.0, read_only=True),
-    ParameterSpec('workspace.min_y', _AREA.workspace_min[1],
-                  'Workspace box lower y in world [m]', -10.0, 10.0, read_only=True),
-    ParameterSpec('workspace.min_z', _AREA.workspace_min[2],
-                  'Workspace box lower z in world [m]', -10.0, 10.0, read_only=True),
-    ParameterSpec('workspace.max_x', _AREA.workspace_max[0],
-                  'Workspace box upper x in world [m]', -10.0, 10.0, read_only=True),
-    ParameterSpec('workspace.max_y', _AREA.workspace_max[1],
-                  'Workspace box upper y in world [m]', -10.0, 10.0, read_only=True),
-    ParameterSpec('workspace.max_z', _AREA.workspace_max[2],
-                  'Workspace box upper z in world [m]', -10.0, 10.0, read_only=True),
-    ParameterSpec('surface_margin_m', _AREA.surface_margin_m,
-                  'Object points must be this far above the work surface z = 0 [m]', 0.0, 0.05),
-    ParameterSpec('cluster_gap_m', _AREA.cluster_gap_m,
-                  'Cell size of the clustering grid: points closer are joined [m]', 0.001, 0.1),
-    ParameterSpec('keep_largest_cluster', _AREA.keep_largest_cluster,
-                  'Keep only the largest cluster of object points (else all of them)'),
-    ParameterSpec('top_band_m', _AREA.top_band_m,
-                  'Height of the band below the object top that forms the correlation area '
-                  '[m]', 0.0005, 0.1),
+    # --- correlation area (step 1): thresholds in sigmas of each point's own height noise
+    *WORKSPACE_PARAMETERS,
+    ParameterSpec('surface_search_m', _AREA.surface_search_m,
+                  'The work surface plane is measured from the points within this of z = 0 '
+                  '[m]', 0.001, 0.2),
+    ParameterSpec('surface_margin_sigmas', _AREA.surface_margin_sigmas,
+                  'Object candidates stand this many sigmas of their height noise above the '
+                  'measured surface', 0.5, 50.0),
+    ParameterSpec('object_sigmas', _AREA.object_sigmas,
+                  'A region of candidates is an object when its median height is this many '
+                  'sigmas (else: no object, no best point)', 0.5, 100.0),
+    ParameterSpec('top_band_sigmas', _AREA.top_band_sigmas,
+                  "The correlation area is the object's points within this many sigmas of its "
+                  'top face', 0.1, 20.0),
+    ParameterSpec('min_disparity_sigma_px', _AREA.min_disparity_sigma_px,
+                  'Lower bound of the disparity noise measured on the surface [px]', 0.001, 5.0),
+    ParameterSpec('assumed_disparity_sigma_px', _AREA.assumed_disparity_sigma_px,
+                  'Disparity noise when too few surface points are seen to measure it [px]',
+                  0.001, 5.0),
     ParameterSpec('min_points', _AREA.min_points,
                   'Fewer points in the correlation area means no best point', 1, 1_000_000),
     # --- rig pose (the chapter's alpha, theta, z0 generalised; must match the calibration)
-    ParameterSpec('rig.baseline_m', _RIG.baseline_m,
-                  'Distance between the optical centres [m]', 0.001, 2.0, read_only=True),
-    ParameterSpec('rig.alpha_deg', _RIG.alpha_deg,
-                  'Rig tilt about its x axis (chapter alpha) [deg]', -90.0, 90.0, read_only=True),
-    ParameterSpec('rig.theta_deg', _RIG.theta_deg,
-                  'Rig pan about world z (chapter theta) [deg]', -180.0, 180.0, read_only=True),
-    ParameterSpec('rig.x0_m', _RIG.x0_m, 'x of the optical centres midpoint in world [m]',
-                  -10.0, 10.0, read_only=True),
-    ParameterSpec('rig.y0_m', _RIG.y0_m, 'y of the optical centres midpoint in world [m]',
-                  -10.0, 10.0, read_only=True),
-    ParameterSpec('rig.z0_m', _RIG.z0_m,
-                  'Height of the optical centres midpoint (chapter z0) [m]', 0.0, 10.0,
-                  read_only=True),
-    ParameterSpec('rig.vergence_deg', _RIG.vergence_deg,
-                  'Total toe-in between the optical axes [deg]', 0.0, 90.0, read_only=True),
+    *RIG_PARAMETERS,
     # --- wiring and reporting
     ParameterSpec('world_frame', 'world', 'Frame of best_point and the decision',
                   read_only=True),
@@ -73,23 +60,17 @@ PARAMETERS = [
 
 def area_config(values: dict[str, ParameterValue]) -> AreaConfig:
     """Return the AreaConfig described by parameter values."""
+    low, high = workspace_box(values)
     return AreaConfig(
-        workspace_min=(float(values['workspace.min_x']), float(values['workspace.min_y']),
-                       float(values['workspace.min_z'])),
-        workspace_max=(float(values['workspace.max_x']), float(values['workspace.max_y']),
-                       float(values['workspace.max_z'])),
-        surface_margin_m=float(values['surface_margin_m']),
-        cluster_gap_m=float(values['cluster_gap_m']),
-        keep_largest_cluster=bool(values['keep_largest_cluster']),
-        top_band_m=float(values['top_band_m']),
+        workspace_min=low, workspace_max=high,
+        surface_search_m=float(values['surface_search_m']),
+        surface_margin_sigmas=float(values['surface_margin_sigmas']),
+        object_sigmas=float(values['object_sigmas']),
+        top_band_sigmas=float(values['top_band_sigmas']),
+        min_disparity_sigma_px=float(values['min_disparity_sigma_px']),
+        assumed_disparity_sigma_px=float(values['assumed_disparity_sigma_px']),
         min_points=int(values['min_points']),  # type: ignore[arg-type]
     )
 
 
-def stereo_rig(values: dict[str, ParameterValue]) -> StereoRig:
-    """Return the StereoRig described by parameter values."""
-    return StereoRig(
-        baseline_m=float(values['rig.baseline_m']), alpha_deg=float(values['rig.alpha_deg']),
-        theta_deg=float(values['rig.theta_deg']), x0_m=float(values['rig.x0_m']),
-        y0_m=float(values['rig.y0_m']), z0_m=float(values['rig.z0_m']),
-        vergence_deg=float(values['rig.vergence_deg']))
+__all__ = ['PARAMETERS', 'area_config', 'stereo_rig']
