@@ -69,6 +69,7 @@ from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene  
 SELECTOR_ORDER = ('fuzzy_fitted', 'fuzzy_chapter', 'centroid', 'max_score', 'neural_network')
 assert set(SELECTOR_ORDER) == set(SELECTORS)
 OPENCV_ROW = 'opencv (SGBM + largest component + top band)'
+ORACLE_BAND_M = 0.004
 ORACLE_ROW = 'diagnosis: centroid of matched points on the true top face (knows the answer)'
 GOALS = {'within': 95.0, 'mean': 1.5, 'max': 10.0}
 TYPE_TITLES = {'circle': 'Circle', 'cylinder': 'Cylinder', 'cubic_rectangle': 'Cubic Rectangle',
@@ -116,14 +117,13 @@ def oracle_top_point(scene: SyntheticScene) -> np.ndarray:
     """Return mean x, y and median z of the matched points the ground truth puts on the top.
 
     A diagnosis, not a selector: those points lie over the object's true footprint and within
-    the top band (AreaConfig.top_band_m) of its true height, as `ceiling: centroid` takes them
-    from perfect points. The gap to that row is the matcher's noise and bias on the top face
-    given a perfect segmentation; what a selector loses beyond this row, it loses finding the
-    object and its top.
+    ORACLE_BAND_M of its true height (the 4 mm top band of the issue). Its gap to the
+    `ceiling: centroid` row is the matcher's noise and bias on the top face given a perfect
+    segmentation; what a selector loses beyond this row, it loses finding the object's top.
     """
     world = transform_points(scene.rig.world_from_left_camera(), scene.points.xyz.astype(float))
     prism = scene.prism
-    band = AreaConfig().top_band_m
+    band = ORACLE_BAND_M
     on_top = (np.abs(world[:, 2] - prism.height) <= band) & prism.contains_xy(world[:, :2])
     if not on_top.any():
         return np.full(3, np.nan)

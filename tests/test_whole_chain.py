@@ -72,8 +72,9 @@ def chain_params(bag: Path) -> Path:
 def offline_best_points(bag: Path, params_file: Path) -> dict[int, list[float] | None]:
     """Return, per scene stamp [ns], the best point the chain's code finds without ROS.
 
-    Reads the bag's images and camera infos, matches them with correlation_node's parameters
-    (StereoMatchingPipeline) and decides with fuzzy_best_point_node's selector and rig.
+    Reads the bag's images and camera infos, matches them as correlation_node does with the
+    bag's parameters (the disparity search derived from the rig pose and the default workspace
+    box) and decides with fuzzy_best_point_node's selector and rig.
     """
     import yaml
     from rclpy.serialization import deserialize_message
@@ -83,6 +84,7 @@ def offline_best_points(bag: Path, params_file: Path) -> dict[int, list[float] |
     from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser
     from stereo_fuzzy_perception.core.camera_model import StereoCalibration
     from stereo_fuzzy_perception.core.image_encoding import to_gray
+    from stereo_fuzzy_perception.core.matching.disparity_range import workspace_disparity_range
     from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
     from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
     from stereo_fuzzy_perception.core.rig_geometry import StereoRig
@@ -95,12 +97,12 @@ def offline_best_points(bag: Path, params_file: Path) -> dict[int, list[float] |
     params = yaml.safe_load(params_file.read_text())
     correlation = params['correlation_node']['ros__parameters']
     fuzzy = params['fuzzy_best_point_node']['ros__parameters']
-    pipeline = StereoMatchingPipeline(
-        MatcherConfig(min_disparity=int(correlation['min_disparity']),
-                      disparity_range=int(correlation['disparity_range'])),
-        int(correlation.get('point_stride', 1)))
-    chooser = BestPointChooser.create(fuzzy.get('selector', 'fuzzy_fitted'), AreaConfig(),
-                                      StereoRig(**fuzzy['rig']))
+    rig = StereoRig(**fuzzy['rig'])
+    assert StereoRig(**correlation['rig']) == rig, 'the nodes must share the rig pose'
+    assert int(correlation.get('disparity_range', 0)) == 0, 'expected a derived search range'
+    pipeline = StereoMatchingPipeline(point_stride=int(correlation.get('point_stride', 1)))
+    chooser = BestPointChooser.create(fuzzy.get('selector', 'fuzzy_fitted'), AreaConfig(), rig)
+    area = AreaConfig()
     types = {'/left/image_raw': Image, '/right/image_raw': Image,
              '/left/camera_info': CameraInfo, '/right/camera_info': CameraInfo}
     scenes: dict[int, dict[str, object]] = {}
@@ -112,6 +114,10 @@ def offline_best_points(bag: Path, params_file: Path) -> dict[int, list[float] |
         left, right = scene['/left/image_raw'], scene['/right/image_raw']
         calibration = StereoCalibration(camera_info_to_calibration(scene['/left/camera_info']),
                                         camera_info_to_calibration(scene['/right/camera_info']))
+        derived = workspace_disparity_range(calibration, rig.world_from_left_camera(),
+                                            area.workspace_min, area.workspace_max)
+        pipeline.config = MatcherConfig(min_disparity=derived.min_disparity,
+                                        disparity_range=derived.disparity_range)
         result = pipeline.process(to_gray(image_to_array(left), left.encoding),
                                   to_gray(image_to_array(right), right.encoding), calibration)
         decision = chooser.decide(result.points, result.rectified.left, result.rectified.right)

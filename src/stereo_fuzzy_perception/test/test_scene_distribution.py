@@ -12,7 +12,6 @@ from stereo_fuzzy_perception.simulation.scene_distribution import (
     SCENE_SEED_BASE,
     SPLITS,
     DistributionError,
-    disparity_search,
     rig_pool,
     split_plan,
     split_rigs,
@@ -118,14 +117,15 @@ def test_the_distribution_draws_every_texture_family_and_a_spread_of_sensors():
 
 @pytest.mark.parametrize('planned', split_plan('evaluation', 2),
                          ids=lambda planned: f'{planned.seed}')
-def test_the_disparity_search_covers_the_objects_top(planned):
+def test_the_default_disparity_search_covers_the_objects_top(planned):
+    from stereo_fuzzy_perception.simulation.distribution_source import matcher_for
     from stereo_fuzzy_perception.simulation.scene_renderer import stereo_calibration
 
     scene = planned.draw()
     rig, camera = scene.rig.rig, scene.rig.camera
     calibration = stereo_calibration(camera, rig)
-    low, span = disparity_search(calibration, rig, camera)
-    assert span % 16 == 0 and 16 <= span <= 512
+    config = matcher_for(calibration, scene)
+    low, span = config.min_disparity, config.disparity_range
     top = scene.scene.scene_object.outline_points()[-4:]
     left = transform_points(np.linalg.inv(rig.world_from_left_camera()), top)
     rectified = left @ calibration.left.R.T
@@ -133,16 +133,6 @@ def test_the_disparity_search_covers_the_objects_top(planned):
     disparity = (homogeneous @ calibration.left.P[0] - homogeneous @ calibration.right.P[0]) \
         / rectified[:, 2]
     assert np.all(disparity > low) and np.all(disparity < low + span - 1), (disparity, low, span)
-
-
-def test_a_rig_looking_away_from_the_workspace_has_no_disparity_search():
-    from stereo_fuzzy_perception.simulation.scene_model import SimulatedCamera
-    from stereo_fuzzy_perception.simulation.scene_renderer import stereo_calibration
-
-    rig = StereoRig(x0_m=5.0, y0_m=5.0, alpha_deg=0.0)
-    camera = SimulatedCamera()
-    with pytest.raises(DistributionError, match='sees no part of the workspace'):
-        disparity_search(stereo_calibration(camera, rig), rig, camera)
 
 
 @pytest.mark.parametrize('family', TEXTURE_FAMILIES)
@@ -175,7 +165,7 @@ def matched_scene():
 
     small = replace(SETTINGS, image_width=320, image_height=240, min_top_px=20.0)
     planned = split_plan('evaluation', 1, small)[1]
-    return match_scene(planned.draw(small), (1, 3), ceiling=True, opencv=True, settings=small)
+    return match_scene(planned.draw(small), (1, 3), ceiling=True, opencv=True)
 
 
 def test_perfect_points_lie_on_the_object_and_triangulate_back_to_themselves(matched_scene):
@@ -216,23 +206,24 @@ def test_the_opencv_reference_finds_the_top_of_a_plain_scene():
     assert error_mm < 5.0, f'OpenCV reference {error_mm:.2f} mm from the top-face centre'
 
 
-def test_chain_parameters_give_the_nodes_the_rig_and_its_disparity_search():
+def test_chain_parameters_give_the_nodes_the_rig_and_derive_the_disparity_search():
     from stereo_fuzzy_perception.simulation.scene_bag_writer import chain_parameters
     from stereo_fuzzy_perception.simulation.scene_distribution import draw_rig
-    from stereo_fuzzy_perception.simulation.scene_renderer import stereo_calibration
 
-    template = {'correlation_node': {'ros__parameters': {'point_stride': 3}},
+    template = {'correlation_node': {'ros__parameters': {
+                    'point_stride': 3, 'min_disparity': 32, 'disparity_range': 64}},
                 'gantry_driver_node': {'ros__parameters': {'approach_offset_m': 0.0}}}
     parameters = chain_parameters(template, 31)
     drawn = draw_rig(31)
-    low, span = disparity_search(stereo_calibration(drawn.camera, drawn.rig), drawn.rig,
-                                 drawn.camera)
-    assert parameters['correlation_node']['ros__parameters'] == {
-        'point_stride': 3, 'min_disparity': low, 'disparity_range': span}
+    correlation = parameters['correlation_node']['ros__parameters']
+    assert correlation['point_stride'] == 3 and correlation['disparity_range'] == 0
+    assert 'min_disparity' not in correlation
+    assert StereoRig(**correlation['rig']) == drawn.rig
     assert StereoRig(**parameters['fuzzy_best_point_node']['ros__parameters']['rig']) \
         == drawn.rig
     assert parameters['gantry_driver_node'] == template['gantry_driver_node']
-    assert 'fuzzy_best_point_node' not in template, 'the template was changed'
+    assert template['correlation_node']['ros__parameters']['disparity_range'] == 64, (
+        'the template was changed')
 
 
 def test_render_scenes_from_a_distribution_rig_is_reproducible(tmp_path):

@@ -2,8 +2,9 @@
 
 For each planned scene (scene_distribution.split_plan) this renders the pair with the scene's
 rig, light, textures and sensor, matches it with the correlation stage the node runs (ZNCC,
-default settings apart from the disparity search, which follows from the rig:
-scene_distribution.disparity_search) and returns, per point stride:
+default settings; with those the node derives the disparity search from the rig pose, the
+calibration and the workspace box, disparity_range.workspace_disparity_range) and returns, per
+point stride:
 
 * `matched`: the matched points, as correlation_node publishes them;
 * `perfect`: the same pixels' 3D points from the renderer's depth buffer (the ceiling: what the
@@ -15,6 +16,7 @@ ROS-free; imports pybullet (through the renderer).
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import os
 from collections.abc import Iterable, Iterator
@@ -27,6 +29,7 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.image_encoding import to_gray
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.matching.disparity_range import workspace_disparity_range
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
 from stereo_fuzzy_perception.core.matching.triangulation import triangulate
 from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
@@ -38,20 +41,25 @@ from stereo_fuzzy_perception.simulation.scene_distribution import (
     DistributionScene,
     DistributionSettings,
     PlannedScene,
-    disparity_search,
 )
 from stereo_fuzzy_perception.simulation.scene_renderer import SceneRenderer, StereoFrame
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene
 
 
 def matcher_for(calibration: StereoCalibration, scene: DistributionScene,
-                settings: DistributionSettings = DEFAULT_SETTINGS,
-                base: MatcherConfig | None = None) -> MatcherConfig:
-    """Return the matcher settings for the scene's rig: `base` (defaults) with its disparities."""
-    low, span = disparity_search(calibration, scene.rig.rig, scene.rig.camera,
-                                 settings.max_object_height_m)
-    base = base or MatcherConfig()
-    return MatcherConfig(**{**base.__dict__, 'min_disparity': low, 'disparity_range': span})
+                base: MatcherConfig | None = None,
+                area: AreaConfig | None = None) -> MatcherConfig:
+    """Return the matcher settings correlation_node uses for the scene's rig by default.
+
+    `base` (MatcherConfig defaults) with the disparities the node derives when disparity_range
+    is 0, its default: those of the workspace box (`area`'s, AreaConfig defaults) in view of
+    both cameras (disparity_range.workspace_disparity_range).
+    """
+    area = area or AreaConfig()
+    derived = workspace_disparity_range(calibration, scene.rig.rig.world_from_left_camera(),
+                                        area.workspace_min, area.workspace_max)
+    return dataclasses.replace(base or MatcherConfig(), min_disparity=derived.min_disparity,
+                               disparity_range=derived.disparity_range)
 
 
 def perfect_points(frame: StereoFrame, rectified: StereoCalibration, stride: int = 1,
@@ -129,15 +137,15 @@ def _synthetic(frame: StereoFrame, scene: DistributionScene, points: MatchedPoin
 
 
 def match_scene(scene: DistributionScene, strides: Iterable[int] = (1,), ceiling: bool = False,
-                opencv: bool = False, settings: DistributionSettings = DEFAULT_SETTINGS,
-                base_matcher: MatcherConfig | None = None) -> MatchedDistributionScene:
+                opencv: bool = False, base_matcher: MatcherConfig | None = None
+                ) -> MatchedDistributionScene:
     """Render, match and (if asked) build the ceiling and the OpenCV reference of one scene."""
     strides = tuple(strides)
     rig = scene.rig
     with SceneRenderer(camera=rig.camera, rig=rig.rig, encoding='mono8') as renderer:
         frame = renderer.render(scene.scene, with_maps=ceiling, lighting=scene.lighting,
                                 sensor=scene.sensor())
-    config = matcher_for(frame.calibration, scene, settings, base_matcher)
+    config = matcher_for(frame.calibration, scene, base_matcher)
     # One stride: match only its rows, as correlation_node does; several: match every row
     # once and take each stride's points from the same disparity map (the same points).
     single = len(set(strides)) == 1
@@ -175,8 +183,7 @@ def _single_threaded() -> None:
 
 
 def _run(job: _Job) -> MatchedDistributionScene:
-    return match_scene(job.planned.draw(job.settings), job.strides, job.ceiling, job.opencv,
-                       job.settings)
+    return match_scene(job.planned.draw(job.settings), job.strides, job.ceiling, job.opencv)
 
 
 def match_plan(plan: Iterable[PlannedScene], strides: Iterable[int] = (1,),

@@ -44,11 +44,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     array_to_image,
     calibration_to_camera_info,
 )
-from stereo_fuzzy_perception.simulation.scene_distribution import (
-    disparity_search,
-    draw_rig,
-    draw_scene,
-)
+from stereo_fuzzy_perception.simulation.scene_distribution import draw_rig, draw_scene
 from stereo_fuzzy_perception.simulation.scene_messages import (
     ground_truth_to_marker,
     ground_truth_to_target,
@@ -65,7 +61,6 @@ from stereo_fuzzy_perception.simulation.scene_renderer import (
     SceneRenderer,
     SensorModel,
     StereoFrame,
-    stereo_calibration,
 )
 
 TOPICS = {
@@ -256,18 +251,21 @@ def settings_from_arguments(args: argparse.Namespace) -> SceneBagSettings:
 def chain_parameters(template: dict[str, Any], rig_index: int) -> dict[str, Any]:
     """Return `template` (a chain parameter file) set up for rig `rig_index` of the pool.
 
-    correlation_node gets the rig's disparity search (scene_distribution.disparity_search),
-    fuzzy_best_point_node its pose (rig.*); everything else stays as in the template.
+    correlation_node and fuzzy_best_point_node get the rig's pose (rig.*), and
+    correlation_node derives its disparity search from it (disparity_range 0, the node's
+    default, replacing a fixed range of the template); everything else stays as in the
+    template.
     """
     drawn = draw_rig(rig_index)
-    calibration = stereo_calibration(drawn.camera, drawn.rig)
-    low, span = disparity_search(calibration, drawn.rig, drawn.camera)
+    pose = {name: float(getattr(drawn.rig, name)) for name in (
+        'baseline_m', 'alpha_deg', 'theta_deg', 'x0_m', 'y0_m', 'z0_m', 'vergence_deg')}
     result = copy.deepcopy(template)
     correlation = result.setdefault('correlation_node', {}).setdefault('ros__parameters', {})
-    correlation.update(min_disparity=low, disparity_range=span)
+    correlation.pop('min_disparity', None)
+    correlation['disparity_range'] = 0
+    correlation['rig'] = dict(pose)
     fuzzy = result.setdefault('fuzzy_best_point_node', {}).setdefault('ros__parameters', {})
-    fuzzy['rig'] = {name: float(getattr(drawn.rig, name)) for name in (
-        'baseline_m', 'alpha_deg', 'theta_deg', 'x0_m', 'y0_m', 'z0_m', 'vergence_deg')}
+    fuzzy['rig'] = dict(pose)
     return result
 
 

@@ -20,9 +20,9 @@ Splits (leave-rig-out): the rig pool is cut in two. `train` and `validation` sce
 training rigs, with different scene seed ranges; `evaluation` scenes use only the held-out rigs,
 and a third seed range. Nothing fitted or tuned may look at `evaluation`.
 
-Correlation settings follow from the rig alone: `disparity_search` gives the disparities under
-which the workspace box up to `max_object_height_m` appears in the rectified pair, as an
-installer would set min_disparity and disparity_range from the rig pose and calibration.
+Correlation settings follow from the rig alone: correlation_node's default derives the
+disparity search from the rig pose, the calibration and the workspace box
+(core/matching/disparity_range.py), and the benchmark does the same.
 
 ROS-free: numpy, OpenCV (through the renderer's calibration) only.
 """
@@ -34,8 +34,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from stereo_fuzzy_perception.core.camera_model import StereoCalibration
-from stereo_fuzzy_perception.core.rig_geometry import StereoRig, transform_points
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 from stereo_fuzzy_perception.simulation.scene_model import (
     OBJECT_TYPES,
     WORKSPACE,
@@ -85,7 +84,6 @@ class DistributionSettings:
         rig_pool_seed: Seed of the rig pool.
         rig_pool_size: Rigs in the pool.
         held_out_rigs: The last this many rigs of the pool are only used for evaluation.
-        max_object_height_m: Tallest object the disparity search must cover [m].
         max_attempts: Redraws of a scene before giving up.
     """
 
@@ -110,7 +108,6 @@ class DistributionSettings:
     rig_pool_seed: int = 14
     rig_pool_size: int = 40
     held_out_rigs: int = 10
-    max_object_height_m: float = 0.10
     max_attempts: int = 200
 
     def sizes(self) -> SizeRange:
@@ -324,41 +321,7 @@ def split_plan(split: str, per_type: int, settings: DistributionSettings = DEFAU
             for k in range(first, first + per_type) for t, kind in enumerate(OBJECT_TYPES)]
 
 
-def disparity_search(calibration: StereoCalibration, rig: StereoRig, camera: SimulatedCamera,
-                     max_object_height_m: float = DEFAULT_SETTINGS.max_object_height_m,
-                     workspace: Workspace = WORKSPACE, margin_px: int = 6) -> tuple[int, int]:
-    """Return (min_disparity, disparity_range) [px] covering the visible workspace box.
-
-    Points of the workspace box from the table up to `max_object_height_m` that both cameras
-    see are projected into the rectified pair; the search covers their disparities with
-    `margin_px` on either side, the range rounded up to a multiple of 16.
-
-    Raises:
-        DistributionError: When the rig sees no part of the workspace.
-    """
-    xs = np.linspace(workspace.x_min, workspace.x_max, 41)
-    ys = np.linspace(workspace.y_min, workspace.y_max, 31)
-    zs = np.linspace(0.0, max_object_height_m, 5)
-    grid = np.stack(np.meshgrid(xs, ys, zs, indexing='ij'), axis=-1).reshape(-1, 3)
-    visible = np.ones(len(grid), dtype=bool)
-    for pose in (rig.world_from_left_camera(), rig.world_from_right_camera()):
-        uv = camera.project(pose, grid)
-        visible &= (np.isfinite(uv).all(axis=1) & (uv[:, 0] >= 0) & (uv[:, 1] >= 0)
-                    & (uv[:, 0] <= camera.width - 1) & (uv[:, 1] <= camera.height - 1))
-    if not visible.any():
-        raise DistributionError(f'the rig {rig} sees no part of the workspace')
-    left = transform_points(np.linalg.inv(rig.world_from_left_camera()), grid[visible])
-    rectified = left @ np.asarray(calibration.left.R, dtype=float).T
-    homogeneous = np.column_stack([rectified, np.ones(len(rectified))])
-    u_left = homogeneous @ np.asarray(calibration.left.P, dtype=float)[0]
-    u_right = homogeneous @ np.asarray(calibration.right.P, dtype=float)[0]
-    disparity = (u_left - u_right) / rectified[:, 2]
-    low = int(math.floor(disparity.min())) - margin_px
-    span = int(math.ceil(disparity.max())) + margin_px - low + 1
-    return low, min(512, 16 * int(math.ceil(span / 16)))
-
-
 __all__ = ['DEFAULT_SETTINGS', 'SCENE_SEED_BASE', 'SPLITS', 'DistributionError',
            'DistributionRig', 'DistributionScene', 'DistributionSettings',
-           'PlannedScene', 'disparity_search', 'draw_rig', 'draw_scene', 'rig_pool',
+           'PlannedScene', 'draw_rig', 'draw_scene', 'rig_pool',
            'split_plan', 'split_rigs', 'top_width_px']
