@@ -62,17 +62,13 @@ def matcher_for(calibration: StereoCalibration, scene: DistributionScene,
                                disparity_range=derived.disparity_range)
 
 
-def perfect_points(frame: StereoFrame, rectified: StereoCalibration, stride: int = 1,
-                   world_from_camera: np.ndarray | None = None,
-                   workspace: tuple[tuple[float, float, float], tuple[float, float, float]] = (
-                       AreaConfig().workspace_min, AreaConfig().workspace_max)
+def perfect_points(frame: StereoFrame, rectified: StereoCalibration, stride: int = 1
                    ) -> MatchedPoints:
     """Return the left image's pixels as 3D points from the depth buffer (every stride-th).
 
     xyz is in the left optical frame (as the matcher gives it); u_left, v_left and u_right are
-    where the point lies in the rectified pair; the score is 1. With `world_from_camera`, only
-    points inside the `workspace` box (min, max corners in `world` [m]) and more than 2 mm above
-    the table are kept.
+    where the point lies in the rectified pair; the score is 1. Every pixel that sees something
+    is kept, the work surface too: the fuzzy stage measures the surface from its points.
 
     Raises:
         ValueError: When the frame was rendered without depth maps.
@@ -85,14 +81,6 @@ def perfect_points(frame: StereoFrame, rectified: StereoCalibration, stride: int
     z = depth[rows, columns]
     u, v = columns * stride, rows * stride
     xyz = np.stack([(u - K[0, 2]) / K[0, 0] * z, (v - K[1, 2]) / K[1, 1] * z, z], axis=1)
-    if world_from_camera is not None:
-        # The table (below 2 mm) and what lies outside the workspace box: every selector
-        # drops these points first, so leaving them out changes no result, only the time.
-        world = xyz @ world_from_camera[:3, :3].T + world_from_camera[:3, 3]
-        low, high = np.asarray(workspace[0]), np.asarray(workspace[1])
-        keep = (world[:, 2] > 0.002) & np.all((world >= low) & (world <= high), axis=1)
-        xyz = xyz[keep]
-        z = xyz[:, 2]
     in_rectified = xyz @ np.asarray(rectified.left.R, dtype=float).T
     homogeneous = np.column_stack([in_rectified, np.ones(len(z))])
     left_uvw = homogeneous @ np.asarray(rectified.left.P, dtype=float).T
@@ -158,8 +146,7 @@ def match_scene(scene: DistributionScene, strides: Iterable[int] = (1,), ceiling
     matched = {stride: _synthetic(frame, scene, result.points if single else triangulate(
         disparity_map.disparity, disparity_map.score, rectified, stride), rectified)
         for stride in strides}
-    pose = rig.rig.world_from_left_camera()
-    perfect = ({stride: _synthetic(frame, scene, perfect_points(frame, rectified, stride, pose),
+    perfect = ({stride: _synthetic(frame, scene, perfect_points(frame, rectified, stride),
                                    rectified) for stride in strides} if ceiling else {})
     opencv_point = None
     if opencv:
