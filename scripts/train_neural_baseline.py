@@ -17,7 +17,11 @@ samples + disparity noise) or `rendered` (pybullet images through the real corre
 comes from:
 
     nice python scripts/train_neural_baseline.py --source distribution --per-type 60 \
-        --validation-per-type 10 --max-residual-mm 10
+        --validation-per-type 10 --max-residual-mm 10 --hidden 8 --weight-decay 1
+
+(16 hidden units and weight decay 1e-4 reached 55 % within 3 mm on its training scenes and 5 %
+on the validation split; 8 units and weight decay 1 reached 30 % and 25 %.) Add
+`--scene-cache /tmp/distribution_scenes.pkl` to both scripts to render the scenes once.
 """
 
 from __future__ import annotations
@@ -49,6 +53,8 @@ def main() -> None:
     add_recipe_arguments(parser)
     parser.add_argument('--hidden', type=int, default=16)
     parser.add_argument('--iterations', type=int, default=4000)
+    parser.add_argument('--weight-decay', type=float, default=1e-4,
+                        help='L2 penalty on the weights (choose it on the validation split)')
     parser.add_argument('--init-seed', type=int, default=0)
     parser.add_argument('--output', default=str(data_path('neural_baseline.npz')))
     args = parser.parse_args()
@@ -59,7 +65,7 @@ def main() -> None:
     train = scenes.train
     network = train_neural_baseline(train.features, train.targets - train.nn_base,
                                     hidden=args.hidden, iterations=args.iterations,
-                                    seed=args.init_seed)
+                                    weight_decay=args.weight_decay, seed=args.init_seed)
     residual = network.predict(train.features) - (train.targets - train.nn_base)
     print(f'training RMS error {1000 * np.sqrt(np.mean(residual ** 2)):.3f} mm per coordinate')
     chooser = BestPointChooser('neural_network', config,
