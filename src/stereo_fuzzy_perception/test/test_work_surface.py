@@ -105,14 +105,21 @@ def test_regions_join_across_one_missing_match_only():
     assert count == 2 and labels[1] == labels[2] == 0
 
 
-def test_a_region_is_an_object_by_its_median_height_not_its_size():
+def test_a_region_is_an_object_by_its_height_not_its_size():
     labels = np.array([1] * 500 + [2] * 40 + [0] * 10)
     z = np.concatenate([np.full(500, 3.4), np.full(40, 9.0), np.zeros(10)])
-    found = choose_object(labels, 2, z, object_sigmas=6.0, min_points=20)
+    heights = np.concatenate([np.full(500, 0.003), np.full(40, 0.009), np.zeros(10)])
+    sigmas = np.full(550, 0.001)
+    found = choose_object(labels, 2, z, heights, sigmas, 6.0, 3.0, 20)
     assert (found.label, found.regions, found.objects, found.points) == (2, 2, 1, 40)
-    nothing = choose_object(labels, 2, z, object_sigmas=10.0, min_points=20)
+    assert found.top_m == pytest.approx(0.009)
+    nothing = choose_object(labels, 2, z, heights, sigmas, 10.0, 3.0, 20)
     assert nothing.label == 0 and nothing.points == 500
-    assert choose_object(labels, 0, z, 6.0, 20).label == 0
+    # significant once averaged, but its top is within the noise of one point: the
+    # surface's own pattern, not an object
+    low = choose_object(labels, 2, z, heights, np.full(550, 0.004), 6.0, 3.0, 20)
+    assert low.label == 0
+    assert choose_object(labels, 0, z, heights, sigmas, 6.0, 3.0, 20).label == 0
 
 
 def test_top_height_is_the_face_not_the_wall_or_the_spikes():

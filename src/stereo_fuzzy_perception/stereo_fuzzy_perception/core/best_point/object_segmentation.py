@@ -35,6 +35,12 @@ TOP_WINDOW_SIGMAS = 2.0
 _EIGHT_NEIGHBOURS = np.ones((3, 3), dtype=bool)
 
 
+def on_pixel_grid(columns: np.ndarray) -> bool:
+    """Return True when the matches lie on whole pixel columns (correlation_node's output)."""
+    columns = np.asarray(columns, dtype=float)
+    return bool(np.all(columns == np.round(columns)))
+
+
 def grid_step(columns: np.ndarray, rows: np.ndarray) -> float:
     """Return the spacing [px] of the matches' image grid (correlation_node's point_stride).
 
@@ -141,9 +147,10 @@ class ObjectRegion:
     Attributes:
         label: Label of the object's region (0: none).
         regions: Regions among the candidates.
-        objects: Regions that pass the height test.
+        objects: Regions that pass both height tests.
         median_sigmas: Median z of the chosen region (or of the largest when none passed).
         points: Points of that region.
+        top_m: Height of its top face [m] (NaN when none passed).
     """
 
     label: int
@@ -151,13 +158,30 @@ class ObjectRegion:
     objects: int
     median_sigmas: float
     points: int
+    top_m: float = math.nan
 
 
-def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, object_sigmas: float,
+def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights: np.ndarray,
+                  sigmas: np.ndarray, object_sigmas: float, top_sigmas: float,
                   min_points: int) -> ObjectRegion:
-    """Return the region that is an object: median z >= object_sigmas, >= min_points points.
+    """Return the region that is an object, or label 0 when none is.
 
-    Of several such regions the one with the most points; label 0 when none passes.
+    A region is an object when it has min_points points, their median z (heights averaged
+    over the image, in sigmas of that average) is object_sigmas, and its top face
+    (top_height) stands top_sigmas above the surface in sigmas of one point. The second test
+    keeps out low, wide patterns that averaging makes significant: the surface's own
+    systematic errors (sub-pixel bias, a plane that fits a slightly curved surface), a
+    millimetre high. Of several objects the one with the most points.
+
+    Args:
+        labels: (N,) region of every point (0: none).
+        count: Number of regions.
+        z_scores: (N,) averaged heights in sigmas.
+        heights: (N,) heights above the surface [m].
+        sigmas: (N,) their standard deviations [m].
+        object_sigmas: Lowest median z of an object.
+        top_sigmas: Lowest top height of an object, in sigmas of its points.
+        min_points: Fewest points of an object.
     """
     if count == 0:
         return ObjectRegion(0, 0, 0, math.nan, 0)
@@ -171,11 +195,17 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, object_s
         if sizes[label]:
             medians[label] = float(np.median(sorted_scores[bounds[label - 1]:bounds[label]]))
     passed = np.flatnonzero((sizes >= min_points) & (medians >= object_sigmas))
-    if not len(passed):
+    objects = []
+    for label in passed:
+        region = labels == label
+        top = top_height(heights[region], sigmas[region])
+        if top >= top_sigmas * float(np.median(sigmas[region])):
+            objects.append((int(sizes[label]), int(label), top))
+    if not objects:
         largest = int(np.argmax(sizes))
         return ObjectRegion(0, count, 0, float(medians[largest]), int(sizes[largest]))
-    chosen = int(passed[np.argmax(sizes[passed])])
-    return ObjectRegion(chosen, count, len(passed), float(medians[chosen]), int(sizes[chosen]))
+    size, chosen, top = max(objects)
+    return ObjectRegion(chosen, count, len(objects), float(medians[chosen]), size, top)
 
 
 def top_height(heights: np.ndarray, sigmas: np.ndarray) -> float:
