@@ -196,11 +196,12 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
             medians[label] = float(np.median(sorted_scores[bounds[label - 1]:bounds[label]]))
     passed = np.flatnonzero((sizes >= min_points) & (medians >= object_sigmas))
     objects = []
-    for label in passed:
+    for passing in passed:
+        label = int(passing)
         region = labels == label
         top = top_height(heights[region], sigmas[region])
         if top >= top_sigmas * float(np.median(sigmas[region])):
-            objects.append((int(sizes[label]), int(label), top))
+            objects.append((int(sizes[label]), label, top))
     if not objects:
         largest = int(np.argmax(sizes))
         return ObjectRegion(0, count, 0, float(medians[largest]), int(sizes[largest]))
