@@ -59,6 +59,9 @@ MIN_OBJECT_AREA_PX = 200.0
 """An object covers at least this much of the left image [px^2] (a square of 14 px): a
 pattern of the surface's errors the size of a correlation window is not one."""
 
+HALF_NORMAL_MEDIAN = 0.6745
+"""Median of |N(0, 1)|."""
+
 SURFACE_AROUND_M = 0.1
 """The work surface is measured this far around the workspace box too [m]."""
 
@@ -345,8 +348,14 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     # surface around a low object and the foot of a side wall stay out even when their noise
     # reaches the band.
     near = grown_region(u_left, v_left, member, step, config.smoothing_px)
-    band = np.flatnonzero(near & in_box & (heights - top <= config.top_band_sigmas * sigma)
-                          & (top - heights <= 0.5 * config.top_band_sigmas * sigma)
+    # The face's own noise: a textured top can be matched worse than the surface (and has
+    # systematic errors of its own); its spread above the top, where no side wall lies, is
+    # half of a normal distribution.
+    above = residual_px[member & (heights > top)] - top / per_px[member & (heights > top)]
+    face_px = float(np.median(above)) / HALF_NORMAL_MEDIAN if len(above) >= 10 else 0.0
+    band_sigma = max(surface.disparity_sigma_px, face_px) * per_px
+    band = np.flatnonzero(near & in_box & (heights - top <= config.top_band_sigmas * band_sigma)
+                          & (top - heights <= 0.5 * config.top_band_sigmas * band_sigma)
                           & (smoothed * per_px >= 0.5 * top))
     used = len(band)
     if used < config.min_points:
