@@ -29,10 +29,10 @@ import numpy as np
 SURFACE_MEASURED = 'measured'
 SURFACE_ASSUMED = 'assumed'
 
-HYPOTHESES = 200
+HYPOTHESES = 120
 """Random 3-point planes tried by the least-quantile search."""
 
-SEARCH_SAMPLE = 3000
+SEARCH_SAMPLE = 1500
 """Candidates (evenly spread) on which the hypotheses are scored."""
 
 SEARCH_QUANTILE = 0.3
@@ -56,7 +56,7 @@ MAX_TILT_DEG = 2.0
 pose is off by a fraction of a degree, while a plane through the surface and the top of a low
 object next to it is tilted by several."""
 
-FIT_SAMPLE = 20000
+FIT_SAMPLE = 8000
 """Candidates (evenly spread) the plane is refined on: more add time, not precision."""
 
 MIN_SURFACE_POINTS = 50
@@ -158,8 +158,8 @@ def fit_work_surface(world: np.ndarray, per_disparity: np.ndarray, search_m: flo
     candidate = np.flatnonzero(np.abs(world[2]) <= search_m)
     if len(candidate) < MIN_SURFACE_POINTS:
         return assumed
-    # In a canonical order (by x, y, z), so the order of the points cannot change the plane.
-    candidate = candidate[np.lexsort(world[::-1, candidate])]
+    # In a canonical order (by x), so the order of the points cannot change the plane.
+    candidate = candidate[np.argsort(world[0, candidate], kind='stable')]
     if len(candidate) > FIT_SAMPLE:
         candidate = candidate[np.linspace(0, len(candidate) - 1, FIT_SAMPLE).astype(int)]
     points = world[:, candidate]
