@@ -37,10 +37,11 @@ def test_the_plane_and_the_noise_are_recovered_under_clutter(offset, slope_x, sl
                                                              clutter, seed):
     rng = np.random.default_rng(seed)
     world, scale = surface_points(rng, (slope_x, slope_y, offset), 4000, sigma_px, 0.004)
-    # clutter: an object and wrong matches up to 2 cm above the surface
+    # clutter: an object and wrong matches from 5 sigmas to 2 cm above the surface
     extra = int(clutter * 4000)
-    above = np.vstack([rng.uniform(0.1, 0.2, extra), rng.uniform(0.1, 0.2, extra),
-                       offset + rng.uniform(0.004, 0.02, extra)])
+    xy = rng.uniform(0.1, 0.2, (2, extra))
+    floor = slope_x * xy[0] + slope_y * xy[1] + offset + 5.0 * sigma_px * 0.004
+    above = np.vstack([xy, floor + rng.uniform(0.0, 0.02, extra)])
     world = np.hstack([world, above])
     scale = np.concatenate([scale, np.full(extra, 0.004)])
     plane = fit_work_surface(world, scale, 0.02, 0.01, 0.2)
@@ -93,6 +94,9 @@ def test_grid_step_is_the_point_stride():
     assert grid_step(columns, columns) == 3.0
     assert grid_step(np.array([5.0]), np.array([1.0])) == 1.0
     assert grid_step(np.array([0.5, 1.7, 3.1, 9.9]), np.array([0.0, 2.0, 4.0, 8.0])) > 1.0
+    # garbage coordinates cannot ask for a huge grid
+    wild = np.array([0.0, 1.0, 2.0, 1e9])
+    assert grid_step(wild, wild) >= 1e9 / 2000
 
 
 def test_regions_join_across_one_missing_match_only():

@@ -32,6 +32,9 @@ TOP_DENSE_SHARE = 0.25
 TOP_WINDOW_SIGMAS = 2.0
 """The top height is the median of the heights within this many sigmas of the dense top bin."""
 
+MAX_GRID_CELLS = 4_000_000
+"""Largest image grid the regions are found on (a 2000 x 2000 image at point_stride 1)."""
+
 _EIGHT_NEIGHBOURS = np.ones((3, 3), dtype=bool)
 
 
@@ -46,17 +49,21 @@ def grid_step(columns: np.ndarray, rows: np.ndarray) -> float:
 
     Matches on whole pixels: the greatest common divisor of the gaps between the distinct
     columns. Matches anywhere (geometric scenes): twice the mean spacing of the points over
-    their bounding box, so that neighbours share or touch cells.
+    their bounding box, so that neighbours share or touch cells. Either way coarse enough
+    that the grid has at most MAX_GRID_CELLS cells, whatever coordinates come in.
     """
     columns = np.asarray(columns, dtype=float)
+    rows = np.asarray(rows, dtype=float)
     distinct = np.unique(columns)
     if len(distinct) < 2:
-        return 1.0
-    if np.all(distinct == np.round(distinct)):
-        return float(max(1, int(np.gcd.reduce(np.diff(distinct).astype(np.int64)))))
-    rows = np.asarray(rows, dtype=float)
-    extent = float(np.ptp(columns) * max(float(np.ptp(rows)), 1.0))
-    return max(1.0, 2.0 * math.sqrt(extent / len(columns)))
+        step = 1.0
+    elif np.all(distinct == np.round(distinct)):
+        step = float(max(1, int(np.gcd.reduce(np.diff(distinct).astype(np.int64)))))
+    else:
+        extent = float(np.ptp(columns) * max(float(np.ptp(rows)), 1.0))
+        step = max(1.0, 2.0 * math.sqrt(extent / len(columns)))
+    span = (float(np.ptp(columns)) + 1.0) * (float(np.ptp(rows)) + 1.0) if len(rows) else 1.0
+    return max(step, math.sqrt(span / MAX_GRID_CELLS))
 
 
 def _grid_cells(u: np.ndarray, v: np.ndarray, step: float) -> tuple[np.ndarray, tuple[int, int]]:
