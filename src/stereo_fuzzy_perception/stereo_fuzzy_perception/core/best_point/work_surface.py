@@ -29,10 +29,10 @@ import numpy as np
 SURFACE_MEASURED = 'measured'
 SURFACE_ASSUMED = 'assumed'
 
-HYPOTHESES = 120
+HYPOTHESES = 60
 """Random 3-point planes tried by the least-quantile search."""
 
-SEARCH_SAMPLE = 1500
+SEARCH_SAMPLE = 1000
 """Candidates (evenly spread) on which the hypotheses are scored."""
 
 SEARCH_QUANTILE = 0.3
