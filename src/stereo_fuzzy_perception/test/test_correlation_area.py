@@ -122,7 +122,10 @@ def test_no_points_and_too_few_points_have_reasons():
     assert empty.status == NO_POINTS and 'none of 0' in empty.reason
     area = area_in(RIG, Box((0.2, 0.15), 0.05, 0.03), 0.1, 3, config=AreaConfig(
         min_points=1_000_000))
-    assert area.status in (TOO_FEW_POINTS, NO_OBJECT) and 'min_points=1000000' in area.reason
+    assert area.status == NO_OBJECT and '1000000 points' in area.reason
+    area = area_in(RIG, Box((0.2, 0.15), 0.05, 0.03), 0.1, 3, config=AreaConfig(
+        min_points=20, top_band_sigmas=0.1))  # a band too thin to hold the face
+    assert area.status == TOO_FEW_POINTS and 'min_points=20' in area.reason
 
 
 def test_bad_configuration_names_the_value():

@@ -37,10 +37,11 @@ def test_the_plane_and_the_noise_are_recovered_under_clutter(offset, slope_x, sl
                                                              clutter, seed):
     rng = np.random.default_rng(seed)
     world, scale = surface_points(rng, (slope_x, slope_y, offset), 4000, sigma_px, 0.004)
-    # clutter: an object and wrong matches up to 2 cm above the surface
+    # clutter: an object and wrong matches from 5 sigmas to 2 cm above the surface
     extra = int(clutter * 4000)
-    above = np.vstack([rng.uniform(0.1, 0.2, extra), rng.uniform(0.1, 0.2, extra),
-                       offset + rng.uniform(0.004, 0.02, extra)])
+    xy = rng.uniform(0.1, 0.2, (2, extra))
+    floor = slope_x * xy[0] + slope_y * xy[1] + offset + 5.0 * sigma_px * 0.004
+    above = np.vstack([xy, floor + rng.uniform(0.0, 0.02, extra)])
     world = np.hstack([world, above])
     scale = np.concatenate([scale, np.full(extra, 0.004)])
     plane = fit_work_surface(world, scale, 0.02, 0.01, 0.2)
@@ -93,6 +94,9 @@ def test_grid_step_is_the_point_stride():
     assert grid_step(columns, columns) == 3.0
     assert grid_step(np.array([5.0]), np.array([1.0])) == 1.0
     assert grid_step(np.array([0.5, 1.7, 3.1, 9.9]), np.array([0.0, 2.0, 4.0, 8.0])) > 1.0
+    # garbage coordinates cannot ask for a huge grid
+    wild = np.array([0.0, 1.0, 2.0, 1e9])
+    assert grid_step(wild, wild) >= 1e9 / 2000
 
 
 def test_regions_join_across_one_missing_match_only():
@@ -105,14 +109,21 @@ def test_regions_join_across_one_missing_match_only():
     assert count == 2 and labels[1] == labels[2] == 0
 
 
-def test_a_region_is_an_object_by_its_median_height_not_its_size():
+def test_a_region_is_an_object_by_its_height_not_its_size():
     labels = np.array([1] * 500 + [2] * 40 + [0] * 10)
     z = np.concatenate([np.full(500, 3.4), np.full(40, 9.0), np.zeros(10)])
-    found = choose_object(labels, 2, z, object_sigmas=6.0, min_points=20)
+    heights = np.concatenate([np.full(500, 0.003), np.full(40, 0.009), np.zeros(10)])
+    sigmas = np.full(550, 0.001)
+    found = choose_object(labels, 2, z, heights, sigmas, 6.0, 3.0, 20)
     assert (found.label, found.regions, found.objects, found.points) == (2, 2, 1, 40)
-    nothing = choose_object(labels, 2, z, object_sigmas=10.0, min_points=20)
+    assert found.top_m == pytest.approx(0.009)
+    nothing = choose_object(labels, 2, z, heights, sigmas, 10.0, 3.0, 20)
     assert nothing.label == 0 and nothing.points == 500
-    assert choose_object(labels, 0, z, 6.0, 20).label == 0
+    # significant once averaged, but its top is within the noise of one point: the
+    # surface's own pattern, not an object
+    low = choose_object(labels, 2, z, heights, np.full(550, 0.004), 6.0, 3.0, 20)
+    assert low.label == 0
+    assert choose_object(labels, 0, z, heights, sigmas, 6.0, 3.0, 20).label == 0
 
 
 def test_top_height_is_the_face_not_the_wall_or_the_spikes():

@@ -41,6 +41,9 @@ PARAMETERS = [
     ParameterSpec('top_band_sigmas', _AREA.top_band_sigmas,
                   "The correlation area is the object's points within this many sigmas of its "
                   'top face', 0.1, 20.0),
+    ParameterSpec('smoothing_px', _AREA.smoothing_px,
+                  'Heights are averaged over a square of this side in the left image before the '
+                  'object test [px]', 1.0, 200.0),
     ParameterSpec('min_disparity_sigma_px', _AREA.min_disparity_sigma_px,
                   'Lower bound of the disparity noise measured on the surface [px]', 0.001, 5.0),
     ParameterSpec('assumed_disparity_sigma_px', _AREA.assumed_disparity_sigma_px,
@@ -67,6 +70,7 @@ def area_config(values: dict[str, ParameterValue]) -> AreaConfig:
         surface_margin_sigmas=float(values['surface_margin_sigmas']),
         object_sigmas=float(values['object_sigmas']),
         top_band_sigmas=float(values['top_band_sigmas']),
+        smoothing_px=float(values['smoothing_px']),
         min_disparity_sigma_px=float(values['min_disparity_sigma_px']),
         assumed_disparity_sigma_px=float(values['assumed_disparity_sigma_px']),
         min_points=int(values['min_points']),  # type: ignore[arg-type]

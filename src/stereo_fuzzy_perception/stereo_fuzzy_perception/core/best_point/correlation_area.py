@@ -30,8 +30,8 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     grid_step,
     grown_region,
     image_regions,
+    on_pixel_grid,
     smoothed_on_grid,
-    top_height,
 )
 from stereo_fuzzy_perception.core.best_point.work_surface import (
     INLIER_SIGMAS,
@@ -50,6 +50,20 @@ NO_OBJECT = 'no_object'
 TOO_FEW_POINTS = 'too_few_points'
 DEGENERATE_AREA = 'degenerate_area'
 NO_RULE_FIRED = 'no_rule_fired'
+
+OBJECT_TOP_SIGMAS = 2.0
+"""An object's top face stands at least this many sigmas of its points above the surface
+(object_segmentation.choose_object)."""
+
+MIN_OBJECT_AREA_PX = 200.0
+"""An object covers at least this much of the left image [px^2] (a square of 14 px): a
+pattern of the surface's errors the size of a correlation window is not one."""
+
+HALF_NORMAL_MEDIAN = 0.6745
+"""Median of |N(0, 1)|."""
+
+SURFACE_AROUND_M = 0.1
+"""The work surface is measured this far around the workspace box too [m]."""
 
 BORDER_PAIRS = ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))
 """Pairs of border points (min u, max u, min v, max v) whose Eq. 9 distances are reported."""
@@ -70,7 +84,9 @@ class AreaConfig:
         surface_search_m: The work surface is looked for within this of z = 0 [m] (how far
             the rig pose may be off at the edge of the view).
         surface_margin_sigmas: Object candidates stand this many sigmas above the surface.
-        object_sigmas: A region is an object when its median height is this many sigmas.
+        object_sigmas: A region is an object when its median height, averaged over
+            smoothing_px, is this many sigmas of that average (and its top
+            OBJECT_TOP_SIGMAS of one point's).
         top_band_sigmas: The correlation area is the object's points within this many sigmas
             of its top face.
         smoothing_px: Side of the image square over which heights are averaged before the
@@ -84,7 +100,7 @@ class AreaConfig:
     workspace_max: tuple[float, float, float] = (0.40, 0.30, 0.20)
     surface_search_m: float = 0.02
     surface_margin_sigmas: float = 3.0
-    object_sigmas: float = 6.0
+    object_sigmas: float = 5.0
     top_band_sigmas: float = 2.0
     smoothing_px: float = 15.0
     min_disparity_sigma_px: float = 0.03
@@ -121,7 +137,8 @@ class CorrelationArea:
         status: STATUS_OK or a status code.
         reason: Human-readable reason when status is not ok ('' when ok).
         points_in: Matches received.
-        points_valid: Finite, inside the workspace box, in front of the cameras.
+        points_valid: Finite, in front of the cameras, inside the workspace box or on the
+            surface around it (SURFACE_AROUND_M).
         clusters_found: Regions of the image grid standing out of the surface noise.
         points_used: Points of the correlation area.
         top_height: World z of the object's top face [m] (NaN when unknown).
@@ -262,6 +279,9 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     low = np.array(config.workspace_min, dtype=float)
     high = np.array(config.workspace_max, dtype=float)
     low[2] -= config.surface_search_m
+    # The surface around the box measures the plane too (its tilt above all).
+    low[:2] -= SURFACE_AROUND_M
+    high[:2] += SURFACE_AROUND_M
     # world: (3, N), one contiguous row per axis
     world, selected, _, _ = _object_points(xyz, pose, low, high, *columns)
     u_left, v_left, u_right, score = (column[selected].astype(float) for column in columns)
@@ -302,27 +322,40 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                          if np.any(on_surface) else surface.disparity_sigma_px,
                          config.min_disparity_sigma_px)
     z_scores = smoothed / smoothed_sigma
-    candidate = (z_scores > config.surface_margin_sigmas) & (world[2] >= config.workspace_min[2])
+    (x_low, y_low, _), (x_high, y_high, _) = config.workspace_min, config.workspace_max
+    in_box = (world[0] >= x_low) & (world[0] <= x_high) & (world[1] >= y_low) & (
+        world[1] <= y_high)
+    candidate = ((z_scores > config.surface_margin_sigmas) & in_box
+                 & (world[2] >= config.workspace_min[2]))
     labels, regions = image_regions(u_left, v_left, candidate, step)
-    found = choose_object(labels, regions, z_scores, config.object_sigmas, config.min_points)
+    fewest = max(config.min_points, math.ceil(MIN_OBJECT_AREA_PX / step ** 2))
+    found = choose_object(labels, regions, z_scores, heights, sigma, config.object_sigmas,
+                          OBJECT_TOP_SIGMAS, fewest)
     if found.label == 0:
         detail = ('no point stands out of it' if regions == 0 else
                   f'{regions} regions stand out of it, the largest ({found.points} points) by '
-                  f'a median {found.median_sigmas:.1f} sigmas, an object needs '
-                  f'object_sigmas={config.object_sigmas:g} and min_points={config.min_points}')
+                  f'a median {found.median_sigmas:.1f} sigmas; an object needs '
+                  f'object_sigmas={config.object_sigmas:g}, a top {OBJECT_TOP_SIGMAS:g} sigmas '
+                  f'of its points high and {fewest} points')
         return refused(NO_OBJECT, f'no object on the work surface ({surface.source}, '
                                   f'disparity noise {surface.disparity_sigma_px:.2f} px): '
                                   + detail, surface, regions, found.median_sigmas)
     member = labels == found.label
-    top = top_height(heights[member], sigma[member])
+    top = found.top_m
     # The face: points near the region, within the band of the top, whose neighbourhood
     # stands at least half as high. Half height is where the averaging square sits half on
     # the face, so the face's rim is found where it is, not where noise cut the region; the
     # surface around a low object and the foot of a side wall stay out even when their noise
     # reaches the band.
     near = grown_region(u_left, v_left, member, step, config.smoothing_px)
-    band = np.flatnonzero(near & (heights - top <= config.top_band_sigmas * sigma)
-                          & (top - heights <= 0.5 * config.top_band_sigmas * sigma)
+    # The face's own noise: a textured top can be matched worse than the surface (and has
+    # systematic errors of its own); its spread above the top, where no side wall lies, is
+    # half of a normal distribution.
+    above = residual_px[member & (heights > top)] - top / per_px[member & (heights > top)]
+    face_px = float(np.median(above)) / HALF_NORMAL_MEDIAN if len(above) >= 10 else 0.0
+    band_sigma = max(surface.disparity_sigma_px, face_px) * per_px
+    band = np.flatnonzero(near & in_box & (heights - top <= config.top_band_sigmas * band_sigma)
+                          & (top - heights <= 0.5 * config.top_band_sigmas * band_sigma)
                           & (smoothed * per_px >= 0.5 * top))
     used = len(band)
     if used < config.min_points:
@@ -330,9 +363,10 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                                        f'min_points={config.min_points}', surface, regions,
                        found.median_sigmas)
     xyz_world = np.ascontiguousarray(world[:, band].T)
-    # A match stands for the patch of the face its pixel sees, Z_rect^3 / (f^2 |n . v|):
-    # |n . v| is the same for every point of a level face and Z_rect is f B / d.
-    weight = disparity[band] ** -3.0
+    # A match on the pixel grid stands for the patch of the face its pixel sees,
+    # Z_rect^3 / (f^2 |n . v|): |n . v| is the same for every point of a level face and Z_rect
+    # is f B / d. Matches anywhere else (geometric scenes) are taken as spread evenly.
+    weight = disparity[band] ** -3.0 if on_pixel_grid(u_left) else np.ones(used)
     weight /= weight.mean()
     return CorrelationArea(STATUS_OK, '', points_in, valid, regions, used,
                            float(np.median(xyz_world[:, 2])), xyz_world, u_left[band],

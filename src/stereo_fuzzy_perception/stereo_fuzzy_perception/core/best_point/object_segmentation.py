@@ -32,7 +32,16 @@ TOP_DENSE_SHARE = 0.25
 TOP_WINDOW_SIGMAS = 2.0
 """The top height is the median of the heights within this many sigmas of the dense top bin."""
 
+MAX_GRID_CELLS = 4_000_000
+"""Largest image grid the regions are found on (a 2000 x 2000 image at point_stride 1)."""
+
 _EIGHT_NEIGHBOURS = np.ones((3, 3), dtype=bool)
+
+
+def on_pixel_grid(columns: np.ndarray) -> bool:
+    """Return True when the matches lie on whole pixel columns (correlation_node's output)."""
+    columns = np.asarray(columns, dtype=float)
+    return bool(np.all(columns == np.round(columns)))
 
 
 def grid_step(columns: np.ndarray, rows: np.ndarray) -> float:
@@ -40,17 +49,21 @@ def grid_step(columns: np.ndarray, rows: np.ndarray) -> float:
 
     Matches on whole pixels: the greatest common divisor of the gaps between the distinct
     columns. Matches anywhere (geometric scenes): twice the mean spacing of the points over
-    their bounding box, so that neighbours share or touch cells.
+    their bounding box, so that neighbours share or touch cells. Either way coarse enough
+    that the grid has at most MAX_GRID_CELLS cells, whatever coordinates come in.
     """
     columns = np.asarray(columns, dtype=float)
+    rows = np.asarray(rows, dtype=float)
     distinct = np.unique(columns)
     if len(distinct) < 2:
-        return 1.0
-    if np.all(distinct == np.round(distinct)):
-        return float(max(1, int(np.gcd.reduce(np.diff(distinct).astype(np.int64)))))
-    rows = np.asarray(rows, dtype=float)
-    extent = float(np.ptp(columns) * max(float(np.ptp(rows)), 1.0))
-    return max(1.0, 2.0 * math.sqrt(extent / len(columns)))
+        step = 1.0
+    elif np.all(distinct == np.round(distinct)):
+        step = float(max(1, int(np.gcd.reduce(np.diff(distinct).astype(np.int64)))))
+    else:
+        extent = float(np.ptp(columns) * max(float(np.ptp(rows)), 1.0))
+        step = max(1.0, 2.0 * math.sqrt(extent / len(columns)))
+    span = (float(np.ptp(columns)) + 1.0) * (float(np.ptp(rows)) + 1.0) if len(rows) else 1.0
+    return max(step, math.sqrt(span / MAX_GRID_CELLS))
 
 
 def _grid_cells(u: np.ndarray, v: np.ndarray, step: float) -> tuple[np.ndarray, tuple[int, int]]:
@@ -141,9 +154,10 @@ class ObjectRegion:
     Attributes:
         label: Label of the object's region (0: none).
         regions: Regions among the candidates.
-        objects: Regions that pass the height test.
+        objects: Regions that pass both height tests.
         median_sigmas: Median z of the chosen region (or of the largest when none passed).
         points: Points of that region.
+        top_m: Height of its top face [m] (NaN when none passed).
     """
 
     label: int
@@ -151,13 +165,30 @@ class ObjectRegion:
     objects: int
     median_sigmas: float
     points: int
+    top_m: float = math.nan
 
 
-def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, object_sigmas: float,
+def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights: np.ndarray,
+                  sigmas: np.ndarray, object_sigmas: float, top_sigmas: float,
                   min_points: int) -> ObjectRegion:
-    """Return the region that is an object: median z >= object_sigmas, >= min_points points.
+    """Return the region that is an object, or label 0 when none is.
 
-    Of several such regions the one with the most points; label 0 when none passes.
+    A region is an object when it has min_points points, their median z (heights averaged
+    over the image, in sigmas of that average) is object_sigmas, and its top face
+    (top_height) stands top_sigmas above the surface in sigmas of one point. The second test
+    keeps out low, wide patterns that averaging makes significant: the surface's own
+    systematic errors (sub-pixel bias, a plane that fits a slightly curved surface), a
+    millimetre high. Of several objects the one with the most points.
+
+    Args:
+        labels: (N,) region of every point (0: none).
+        count: Number of regions.
+        z_scores: (N,) averaged heights in sigmas.
+        heights: (N,) heights above the surface [m].
+        sigmas: (N,) their standard deviations [m].
+        object_sigmas: Lowest median z of an object.
+        top_sigmas: Lowest top height of an object, in sigmas of its points.
+        min_points: Fewest points of an object.
     """
     if count == 0:
         return ObjectRegion(0, 0, 0, math.nan, 0)
@@ -171,11 +202,18 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, object_s
         if sizes[label]:
             medians[label] = float(np.median(sorted_scores[bounds[label - 1]:bounds[label]]))
     passed = np.flatnonzero((sizes >= min_points) & (medians >= object_sigmas))
-    if not len(passed):
+    objects = []
+    for passing in passed:
+        label = int(passing)
+        region = labels == label
+        top = top_height(heights[region], sigmas[region])
+        if top >= top_sigmas * float(np.median(sigmas[region])):
+            objects.append((int(sizes[label]), label, top))
+    if not objects:
         largest = int(np.argmax(sizes))
         return ObjectRegion(0, count, 0, float(medians[largest]), int(sizes[largest]))
-    chosen = int(passed[np.argmax(sizes[passed])])
-    return ObjectRegion(chosen, count, len(passed), float(medians[chosen]), int(sizes[chosen]))
+    size, chosen, top = max(objects)
+    return ObjectRegion(chosen, count, len(objects), float(medians[chosen]), size, top)
 
 
 def top_height(heights: np.ndarray, sigmas: np.ndarray) -> float:

@@ -11,9 +11,10 @@ point: at 0.3 m it is a few tenths of a millimetre per pixel, at 0.9 m several m
 
 The plane. Points within `search_m` of the plane z = 0 the rig pose predicts are the
 candidates. Residuals are compared in disparity pixels (height residual / height_per_disparity),
-where the noise is the same for every point. A least-median-of-squares search over random
-3-point planes (a fixed seed, so the same points give the same plane) finds the surface even
-when an object or a noise sheet holds up to half of the candidates; weighted least squares on
+where the noise is the same for every point. A least-quantile-of-squares search over random
+3-point planes tilted at most MAX_TILT_DEG (a fixed seed, so the same points give the same
+plane) finds the surface even when an object or a noise sheet holds up to half of the
+candidates; weighted least squares on
 the points within INLIER_SIGMAS of it then refines it, and the spread of those residuals gives
 sigma_d, the disparity noise of this pair.
 """
@@ -28,10 +29,20 @@ import numpy as np
 SURFACE_MEASURED = 'measured'
 SURFACE_ASSUMED = 'assumed'
 
-HYPOTHESES = 200
-"""Random 3-point planes tried by the least-median search."""
+HYPOTHESES = 60
+"""Random 3-point planes tried by the least-quantile search."""
 
-SEARCH_SAMPLE = 3000
+SEARCH_SAMPLE = 1000
+"""Candidates (evenly spread) on which the hypotheses are scored."""
+
+SEARCH_QUANTILE = 0.3
+"""A hypothesis is scored by this quantile of its absolute residuals (least quantile of
+squares): the surface wins while it holds more than this share of the candidates, and a plane
+through the surface and a low object beside it, which halves the residuals of both, loses to
+the plane that fits the surface alone."""
+
+SEARCH_QUANTILE_SIGMAS = 0.385
+"""That quantile of |N(0, 1)|, in standard deviations."""
 """Candidates (evenly spread) on which the hypotheses are scored."""
 
 INLIER_SIGMAS = 3.0
@@ -40,7 +51,12 @@ INLIER_SIGMAS = 3.0
 MAD_SCALE = 1.4826
 """Median absolute deviation of a normal distribution, in standard deviations."""
 
-FIT_SAMPLE = 20000
+MAX_TILT_DEG = 2.0
+"""Planes tilted more than this from the one the rig pose predicts are not the surface: a rig
+pose is off by a fraction of a degree, while a plane through the surface and the top of a low
+object next to it is tilted by several."""
+
+FIT_SAMPLE = 8000
 """Candidates (evenly spread) the plane is refined on: more add time, not precision."""
 
 MIN_SURFACE_POINTS = 50
@@ -142,6 +158,8 @@ def fit_work_surface(world: np.ndarray, per_disparity: np.ndarray, search_m: flo
     candidate = np.flatnonzero(np.abs(world[2]) <= search_m)
     if len(candidate) < MIN_SURFACE_POINTS:
         return assumed
+    # In a canonical order (by x), so the order of the points cannot change the plane.
+    candidate = candidate[np.argsort(world[0, candidate], kind='stable')]
     if len(candidate) > FIT_SAMPLE:
         candidate = candidate[np.linspace(0, len(candidate) - 1, FIT_SAMPLE).astype(int)]
     points = world[:, candidate]
@@ -150,15 +168,17 @@ def fit_work_surface(world: np.ndarray, per_disparity: np.ndarray, search_m: flo
     sample_points, sample_scale = points[:, sample], scale[sample]
     triples = np.random.default_rng(0).integers(0, len(sample), size=(HYPOTHESES, 3))
     hypotheses = _planes_through(sample_points.T[triples])
+    level = np.hypot(hypotheses[:, 0], hypotheses[:, 1]) <= math.tan(math.radians(MAX_TILT_DEG))
+    hypotheses = hypotheses[level]
     if not len(hypotheses):
         return assumed
     residual = (sample_points[2] - hypotheses[:, :1] * sample_points[0]
                 - hypotheses[:, 1:2] * sample_points[1] - hypotheses[:, 2:]) / sample_scale
-    medians = np.median(residual ** 2, axis=1)
-    best = int(np.argmin(medians))
-    best_median = float(medians[best])
+    rank = int(SEARCH_QUANTILE * (residual.shape[1] - 1))
+    quantiles = np.partition(np.abs(residual), rank, axis=1)[:, rank]
+    best = int(np.argmin(quantiles))
     plane = hypotheses[best]
-    sigma = max(MAD_SCALE * math.sqrt(best_median), min_sigma_px)
+    sigma = max(float(quantiles[best]) / SEARCH_QUANTILE_SIGMAS, min_sigma_px)
     inside = np.zeros(0, dtype=int)
     for _ in range(3):
         residual = (points[2] - plane[0] * points[0] - plane[1] * points[1] - plane[2]) / scale
