@@ -59,6 +59,9 @@ MIN_OBJECT_AREA_PX = 200.0
 """An object covers at least this much of the left image [px^2] (a square of 14 px): a
 pattern of the surface's errors the size of a correlation window is not one."""
 
+FACE_LEVEL = 0.5
+"""A point of the face has an averaged height of at least this share of the top's."""
+
 HALF_NORMAL_MEDIAN = 0.6745
 """Median of |N(0, 1)|."""
 
@@ -356,7 +359,7 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     band_sigma = max(surface.disparity_sigma_px, face_px) * per_px
     band = np.flatnonzero(near & in_box & (heights - top <= config.top_band_sigmas * band_sigma)
                           & (top - heights <= 0.5 * config.top_band_sigmas * band_sigma)
-                          & (smoothed * per_px >= 0.5 * top))
+                          & (smoothed * per_px >= FACE_LEVEL * top))
     used = len(band)
     if used < config.min_points:
         return refused(TOO_FEW_POINTS, f"{used} points on the object's top face, need "
