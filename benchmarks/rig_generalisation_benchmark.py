@@ -7,8 +7,8 @@ toe-in per camera, 40-70 deg field of view), seven texture families, random ligh
 levels of noise, right camera gain 0.7-1.3 and offset -30..+30; scene seeds of their own range.
 The selectors' data files were fitted on the train split (other rigs, other seeds); nothing here
 is tuned on these scenes. Only the rig pose and the calibration are given: correlation runs with
-default settings apart from the disparity search, which follows from the rig
-(scene_distribution.disparity_search).
+correlation_node's default settings, under which the node derives its disparity search from the
+rig pose, the calibration and the workspace box (core/matching/disparity_range.py).
 
 Per scene (rendered once, matched once, at every --point-stride):
 
