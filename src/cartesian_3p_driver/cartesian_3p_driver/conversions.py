@@ -14,7 +14,7 @@ from stereo_fuzzy_msgs.action import MoveTo
 from stereo_fuzzy_msgs.msg import GantryState
 
 from .gcode import Vector3
-from .grbl_link import GantrySnapshot, MoveFeedback, MoveFinished
+from .link_events import GantrySnapshot, MoveFeedback, MoveFinished
 
 
 def target_from_point_stamped(msg: PointStamped, now_ns: int) -> tuple[Vector3, str, float | None]:

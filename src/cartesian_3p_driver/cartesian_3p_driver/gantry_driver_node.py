@@ -1,6 +1,7 @@
 """Drive a Grbl-compatible 3-axis gantry from best points over a serial line.
 
-A thin adapter around GrblLink (grbl_link.py). Threading: the serial port belongs to the
+A thin adapter around GrblLink (grbl_link.py), the serial runner of the sans-I/O
+GrblSession (grbl_session.py). Threading: the serial port belongs to the
 link's own I/O thread, so a slow or dead controller never blocks this node's executor. The
 link hands events back through a thread-safe queue and a guard condition; the guard
 condition's callback runs in the executor, which is the only thread that publishes, completes
@@ -51,14 +52,14 @@ from .gcode import (
     check_target,
     plan_move,
 )
-from .grbl_link import (
+from .grbl_link import GrblLink, LinkConfig
+from .link_events import (
     GantrySnapshot,
-    GrblLink,
-    LinkConfig,
     LinkEvent,
     MoveFeedback,
     MoveFinished,
     RequestFinished,
+    SessionConfig,
 )
 from .parameter_spec import ParameterValue
 from .ros_parameters import declare_parameters
@@ -86,19 +87,21 @@ def motion_config_from(values: dict[str, Any]) -> MotionConfig:
 
 def link_config_from(values: dict[str, Any]) -> LinkConfig:
     """Build the serial link configuration from parameter values."""
-    return LinkConfig(
-        port=values['port'], baud=values['baud'], streaming_mode=values['streaming_mode'],
-        poll_period_s=1.0 / values['poll_rate_hz'],
+    session = SessionConfig(
+        streaming_mode=values['streaming_mode'], poll_period_s=1.0 / values['poll_rate_hz'],
         banner_timeout_s=values['banner_timeout_s'], reply_timeout_s=values['reply_timeout_s'],
         homing_timeout_s=values['homing_timeout_s'], link_timeout_s=values['link_timeout_s'],
         stop_timeout_s=values['stop_timeout_s'],
-        reconnect_initial_s=values['reconnect_initial_s'],
-        reconnect_max_s=values['reconnect_max_s'],
         new_target_policy=values['new_target_policy'],
         max_queued_moves=values['max_queued_moves'],
         position_tolerance_mm=values['position_tolerance_mm'],
         require_homing_at_start=values['require_homing_at_start'],
-        sent_lines_log=values['sent_lines_log'],
+    )
+    return LinkConfig(
+        port=values['port'], baud=values['baud'],
+        reconnect_initial_s=values['reconnect_initial_s'],
+        reconnect_max_s=values['reconnect_max_s'],
+        sent_lines_log=values['sent_lines_log'], session=session,
     )
 
 
@@ -161,8 +164,7 @@ class GantryDriverNode(Node):
 
     def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
         self._motion = motion_config_from(values)
-        self._link.motion = self._motion  # replaced whole; the I/O thread reads it per move
-        self._link.config = link_config_from(values)
+        self._link.reconfigure(link_config_from(values), self._motion)
         self._diagnostics_timer.timer_period_ns = int(values['diagnostics_period_s'] * 1e9)  # type: ignore[operator]
 
     # -- link events (I/O thread -> executor) -------------------------------------------------
