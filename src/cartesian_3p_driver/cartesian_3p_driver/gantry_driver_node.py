@@ -14,6 +14,7 @@ group would keep the guard condition that completes it from ever running (a dead
 from __future__ import annotations
 
 import queue
+import sys
 from typing import Any
 
 import rclpy
@@ -22,6 +23,7 @@ from geometry_msgs.msg import PointStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
@@ -49,6 +51,7 @@ from .gcode import (
     Vector3,
     WorkspaceLimits,
     as_vector3,
+    check_feed,
     check_target,
     plan_move,
 )
@@ -82,6 +85,7 @@ def motion_config_from(values: dict[str, Any]) -> MotionConfig:
         approach_offset_m=values['approach_offset_m'],
         default_feed_mm_min=values['feed_rate_mm_min'],
         max_rate_mm_min=as_vector3(values['max_rate_mm_min'], 'max_rate_mm_min'),
+        min_feed_mm_min=values['min_feed_rate_mm_min'],
     )
 
 
@@ -128,7 +132,7 @@ class GantryDriverNode(Node):
                                              apply=self._apply_parameters)
         values = self.parameters
         self._motion = motion_config_from(values)
-        self._snapshot = GantrySnapshot()
+        self._snapshot = GantrySnapshot(port=values['port'])
         self._last_rejection = ''
         self._events: queue.SimpleQueue[LinkEvent] = queue.SimpleQueue()
         self._move_futures: dict[int, Future] = {}
@@ -244,12 +248,16 @@ class GantryDriverNode(Node):
                                   self.parameters['max_target_age_s'], self._motion.limits)
             plan_move(target, None, 0.0, self._motion)  # the approach offset must fit too
         except TargetRejectedError as error:
-            self._last_rejection = f'{source}: {error.reason}'
-            self.get_logger().warning(f'rejected target from {source}: {error.reason}',
-                                      throttle_duration_sec=1.0)
-            self._publish_state()
+            self._reject(source, error.reason)
             return None
         return target
+
+    def _reject(self, source: str, reason: str) -> None:
+        """Log a refused request once per second at most and show it in gantry/state."""
+        self._last_rejection = f'{source}: {reason}'
+        self.get_logger().warning(f'rejected target from {source}: {reason}',
+                                  throttle_duration_sec=1.0)
+        self._publish_state()
 
     def _on_best_point(self, msg: PointStamped) -> None:
         target = self._validate_target(msg, 'best_point')
@@ -259,6 +267,12 @@ class GantryDriverNode(Node):
     async def _execute_move(self, goal_handle: ServerGoalHandle) -> MoveTo.Result:
         request = goal_handle.request
         target = self._validate_target(request.target, 'gantry/move_to')
+        if target is not None:
+            try:
+                check_feed(request.feed_rate_mm_min, self._motion)
+            except TargetRejectedError as error:
+                self._reject('gantry/move_to', error.reason)
+                target = None
         if target is None:
             goal_handle.abort()
             return to_result(MoveFinished(0, False, f'refused: {self._last_rejection}',
@@ -305,19 +319,38 @@ class GantryDriverNode(Node):
         super().destroy_node()
 
 
+def startup_failure(error: Exception) -> str:
+    """Return one line naming the bad parameter, its value and what is allowed."""
+    text = str(error)
+    for spec in PARAMETERS:
+        if isinstance(error, ParameterException) and text.endswith(f': {spec.name}'):
+            allowed = spec.constraint_text() or f'a {type(spec.default).__name__}'
+            return f'parameter {spec.name}: {text[:-len(spec.name) - 2]} (allowed: {allowed})'
+    return f'bad parameters: {text}'
+
+
 def main(args: list[str] | None = None) -> None:
-    """Run the node until shutdown."""
+    """Run the node until shutdown; a bad parameter ends it with one FATAL line, exit code 2."""
     rclpy.init(args=args)
     node = None
+    exit_code = 0
     try:
-        node = GantryDriverNode()
-        rclpy.spin(node)
+        try:
+            node = GantryDriverNode()
+        except (ValueError, ParameterException) as error:  # declared or validated values
+            rclpy.logging.get_logger('gantry_driver_node').fatal(
+                f'cannot start: {startup_failure(error)}')
+            exit_code = 2
+        else:
+            rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    if exit_code:
+        sys.exit(exit_code)
 
 
 if __name__ == '__main__':
