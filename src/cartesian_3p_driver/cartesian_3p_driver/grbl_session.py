@@ -35,10 +35,14 @@ from .grbl_protocol import (
     error_text,
     parse_status_report,
 )
+from .grbl_settings_check import MachineSettings, parse_setting, settings_problem
 from .line_streamer import StreamingError
 from .link_events import DISCONNECTED, CloseLink, RequestFinished
 from .session_core import FAST_POLL_PERIOD_S, SETTLED_STAGES, Lockout, Stage
 from .session_requests import SessionRequests
+
+#: The one line the driver writes to read the controller's settings.
+READ_SETTINGS = '$$'
 
 
 class GrblSession(SessionRequests):
@@ -60,6 +64,7 @@ class GrblSession(SessionRequests):
         self._opened_at = self._last_rx_at = self._last_poll_at = now
         self._waiting_since = None
         self._closed_reason = ''
+        self.machine_settings, self.settings_problem = None, ''
         self._enter(Stage.AWAITING_BANNER)
         self._emit_snapshot(link_error='')
 
@@ -132,6 +137,10 @@ class GrblSession(SessionRequests):
             self._on_reply(reply.kind is ReplyKind.OK, reply.code, now)
         elif reply.kind is ReplyKind.ALARM:
             self._on_alarm(reply.code, now)
+        elif reply.kind is ReplyKind.SETTING:
+            setting = parse_setting(text)
+            if setting is not None and self.stage is Stage.READING_SETTINGS:
+                self._setting_values[setting[0]] = setting[1]
         elif reply.kind is ReplyKind.MESSAGE:
             if 'Reset to continue' in text and self.lockout is Lockout.FAULT:
                 self.lockout = Lockout.FAULT_RESET_FIRST
@@ -162,6 +171,8 @@ class GrblSession(SessionRequests):
                               f'{len(lost)} unanswered line(s) discarded, none re-sent')
             self._fail_all_moves('controller reset unexpectedly')
             self._finish_system(False, 'controller reset unexpectedly')
+        if expected and self._stop is not None and self._stop.done_at_banner:
+            self._end_stop(True, self._stop.done_at_banner)
         self._query_status(now)
         self._emit_snapshot(link_error='')
 
@@ -170,7 +181,13 @@ class GrblSession(SessionRequests):
             self._wco = report.work_offset_mm
         self._report = report
         if self.stage is Stage.QUERYING_STATE:
-            self._enter(Stage.STATE_KNOWN)
+            if self.machine_settings is None and not self.settings_problem:
+                # Once per connection, before anything else is sent: $$ (Idle or Alarm).
+                self._enter(Stage.READING_SETTINGS)
+                self._setting_values = {}
+                self._streamer.enqueue([READ_SETTINGS])
+            else:
+                self._enter(Stage.STATE_KNOWN)
         machine = report.resolve_machine_position(self._wco)
         world = self.motion.transform.to_world(machine) if machine is not None else None
         self._snapshot = replace(
@@ -233,6 +250,8 @@ class GrblSession(SessionRequests):
         self._streamer.forget_in_flight()
         self._waiting_since = None
         reason = f'no reply to {line!r} within {limit:.1f} s'
+        if self.stage is Stage.READING_SETTINGS:
+            self._settings_read(f'no reply to $$ within {limit:.1f} s')
         if self.stage is Stage.SYSTEM_COMMAND:
             self._end_system(False, reason)
         self._set_fault(f'{reason} (lost reply?); streaming stopped, nothing re-sent', now)
@@ -288,6 +307,9 @@ class GrblSession(SessionRequests):
                             'flight (replies out of step); streaming stopped', now)
             return
         self._waiting_since = now if self._streamer.in_flight else None
+        if self.stage is Stage.READING_SETTINGS and line == READ_SETTINGS:
+            self._settings_read(f'the controller refused $$ (error:{code})' if not ok else '')
+            return
         system = self._system
         if self.stage is Stage.SYSTEM_COMMAND and system is not None and line == system.line:
             if ok:
@@ -308,6 +330,28 @@ class GrblSession(SessionRequests):
             self._on_ready()
         else:
             self._moves.line_acknowledged(now)
+        self._emit_snapshot()
+
+    def _settings_read(self, failure: str) -> None:
+        """Check the $$ settings (or record why they could not be read); logged once."""
+        problem = failure
+        if not problem:
+            try:
+                self.machine_settings = MachineSettings.from_values(self._setting_values)
+            except ValueError as error:
+                problem = str(error)
+        if self.machine_settings is not None:
+            self._log('info', f'gantry link: controller settings: '
+                              f'{self.machine_settings.describe()}')
+            problem = settings_problem(self.machine_settings, self.motion)
+            if not self.machine_settings.soft_limits:
+                self._log('warn', "gantry link: the controller's soft limits ($20) are off: "
+                                  "the driver's workspace check is the only travel limit")
+        if problem:
+            self.settings_problem = problem
+            self._log('error', f'gantry link: motion refused, controller settings do not fit '
+                               f'the driver parameters: {problem}')
+        self._enter(Stage.STATE_KNOWN)
         self._emit_snapshot()
 
     def _on_ready(self) -> None:

@@ -13,6 +13,7 @@ from typing import Any
 
 from .gcode import MotionConfig
 from .grbl_protocol import STATUS_QUERY, StatusReport
+from .grbl_settings_check import MachineSettings
 from .line_streamer import LineStreamer
 from .link_events import (
     DISCONNECTED,
@@ -37,6 +38,7 @@ class Stage(Enum):
     AWAITING_BANNER = 'waiting for banner'
     AWAITING_BANNER_AFTER_RESET = 'no banner: soft reset sent, waiting for banner'
     QUERYING_STATE = 'banner seen'
+    READING_SETTINGS = 'reading the controller settings ($$)'
     STATE_KNOWN = 'state known, preamble not sent'
     SENDING_PREAMBLE = 'preamble sent'
     READY = 'ready'
@@ -53,7 +55,8 @@ _TRANSITIONS: dict[Stage, tuple[Stage, ...]] = {
     Stage.CLOSED: (Stage.AWAITING_BANNER,),
     Stage.AWAITING_BANNER: (Stage.AWAITING_BANNER_AFTER_RESET, Stage.QUERYING_STATE),
     Stage.AWAITING_BANNER_AFTER_RESET: (Stage.QUERYING_STATE,),
-    Stage.QUERYING_STATE: (Stage.STATE_KNOWN,),
+    Stage.QUERYING_STATE: (Stage.STATE_KNOWN, Stage.READING_SETTINGS),
+    Stage.READING_SETTINGS: (Stage.STATE_KNOWN,),
     Stage.STATE_KNOWN: (Stage.SENDING_PREAMBLE,),
     Stage.SENDING_PREAMBLE: (Stage.READY,),
     Stage.READY: (),
@@ -94,6 +97,8 @@ class StopSequence:
     resume_stage: Stage
     request_id: int | None = None
     then_move: Move | None = None
+    #: Set when the stop is a bare soft reset: it is over at the banner, with this message.
+    done_at_banner: str = ''
 
 
 class _Output:
@@ -124,6 +129,10 @@ class SessionCore:
         self.fault_reason = ''
         # Set at start (if configured) and by every reconnection; only $H clears it.
         self.homing_required = config.require_homing_at_start
+        # The controller's $$ settings, read once per connection, and why they forbid motion.
+        self.machine_settings: MachineSettings | None = None
+        self.settings_problem = ''
+        self._setting_values: dict[int, float] = {}
         self._out = _Output()
         self._events: deque[SessionEvent] = deque()
         self._streamer = self._new_streamer()
@@ -215,7 +224,10 @@ class SessionCore:
         snapshot = replace(
             snapshot,
             connected=self._connected(),
-            fault=self.fault_reason,
+            fault=self.fault_reason or (
+                f'controller settings refuse motion: {self.settings_problem}'
+                if self.settings_problem else ''),
+            settings_problem=self.settings_problem,
             lines_queued=(streamer.queued if is_open else 0) + self._moves.waiting_lines(),
             lines_sent=streamer.lines_sent if is_open else 0,
             lines_acknowledged=streamer.lines_acknowledged if is_open else 0,
@@ -254,6 +266,9 @@ class SessionCore:
                     'gantry/home')
         if self._report is not None and self._report.state == 'Alarm':
             return 'controller in Alarm: call gantry/home or gantry/unlock'
+        if self.settings_problem:
+            return (f'controller settings refuse motion: {self.settings_problem}; fix the '
+                    'parameters or the controller, then reconnect')
         if self._system is not None or self._stop is not None:
             return 'busy with a home/unlock/stop request'
         if self.stage is not Stage.READY:

@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from .gcode import Vector3
-from .grbl_protocol import FEED_HOLD
+from .grbl_protocol import FEED_HOLD, SOFT_RESET
 from .link_events import RequestFinished
 from .move_queue import Move
 from .session_core import Lockout, SessionCore, Stage, StopSequence, SystemCommand
@@ -78,7 +78,9 @@ class SessionRequests(SessionCore):
             self._finished(RequestFinished(request_id, False, 'not connected to the controller'))
             return
         self._fail_all_moves('stopped by gantry/stop')
-        if self._stop is None:
+        if self.stage is Stage.SYSTEM_COMMAND and self._stop is None:
+            self._reset_during_system_command(request_id, now)
+        elif self._stop is None:
             self._begin_stop('gantry/stop', now, request_id=request_id)
         elif self._stop.request_id is not None:
             self._finished(RequestFinished(request_id, False, 'a stop is already running'))
@@ -149,6 +151,30 @@ class SessionRequests(SessionCore):
         self._enter(Stage.FEED_HOLD)
         self._out.write(FEED_HOLD)
         self._query_status(now)
+
+    def _reset_during_system_command(self, request_id: int, now: float) -> None:
+        """Stop a home/unlock at once: Grbl ignores a feed hold while homing, not a reset.
+
+        The reset leaves homing incomplete (Grbl raises ALARM:6 and stays in Alarm), so the
+        position is not trusted and homing is required again.
+        """
+        system = self._system
+        assert system is not None
+        self._streamer.forget_in_flight()
+        self._waiting_since = None
+        self._end_system(False, f'{system.line} interrupted by gantry/stop (soft reset)')
+        message = 'stopped with a soft reset'
+        if system.kind == 'home':
+            self.homing_required = True
+            message += ('; homing is incomplete and the controller stays in Alarm: call '
+                        'gantry/home')
+        self._stop = StopSequence('gantry/stop during ' + system.line,
+                                  now + self.config.stop_timeout_s, self.stage, request_id,
+                                  done_at_banner=message)
+        self._enter(Stage.RESETTING)
+        self._out.write(SOFT_RESET)
+        self._log('warn', f'gantry link: {message}')
+        self._emit_snapshot()
 
     def _end_stop(self, success: bool, message: str) -> None:
         stop, self._stop = self._stop, None

@@ -14,6 +14,8 @@ from cartesian_3p_driver.grbl_session import Stage
 from cartesian_3p_driver.link_events import SessionConfig
 
 PREAMBLE = ['G21 G90 G94']
+#: Lines written after each connection: read the settings, then the preamble.
+CONNECT = ['$$'] + PREAMBLE
 MOVE_100_200_50 = ['G53 G1 Z150.000 F1000.0', 'G53 G1 X100.000 Y200.000 F1500.0',
                    'G53 G1 Z50.000 F1000.0']
 
@@ -32,7 +34,7 @@ def test_banner_then_state_then_preamble_then_ready(bench):
     b.open()
     assert b.session.stage is not Stage.AWAITING_BANNER   # the banner came with the boot
     b.ready()
-    assert b.written == PREAMBLE
+    assert b.written == CONNECT
     assert b.session.stage is Stage.READY
     assert 'RESET' not in b.commands()
 
@@ -52,7 +54,7 @@ def test_a_silent_controller_answers_the_soft_reset_with_its_banner(bench):
     b.controller.output.clear()
     b.session.connection_opened(b.now)                   # opened, but no boot banner
     b.ready()
-    assert b.commands() == ['RESET'] + PREAMBLE
+    assert b.commands() == ['RESET'] + CONNECT
     assert not b.closed()
 
 
@@ -66,7 +68,7 @@ def test_motion_is_refused_until_the_preamble_is_acknowledged(bench):
     b.ready()
     job = b.move(0.1, 0.2, 0.05)
     assert b.wait_finished(job).success
-    assert b.written == PREAMBLE + MOVE_100_200_50
+    assert b.written == CONNECT + MOVE_100_200_50
 
 
 # -- moves ----------------------------------------------------------------------------------
@@ -76,7 +78,7 @@ def test_a_move_finishes_only_on_idle_at_the_goal(bench):
     b.open()
     b.ready()
     job = b.move(0.1, 0.2, 0.05)
-    b.run_until(lambda: b.session.snapshot.lines_acknowledged == 4, 'every line acknowledged')
+    b.run_until(lambda: b.session.snapshot.lines_acknowledged == 5, 'every line acknowledged')
     assert b.controller.state == 'Run'                   # every ok came, the move has not
     assert b.finished(job) is None
     result = b.wait_finished(job)
@@ -124,7 +126,7 @@ def test_an_error_reply_latches_a_fault_that_only_unlock_clears(bench):
     b.ready()
     result = b.wait_finished(b.move(0.1, 0.2, 0.05))
     assert not result.success and 'error:33' in result.outcome
-    assert b.written == PREAMBLE + MOVE_100_200_50[:2]   # the descent was never sent
+    assert b.written == CONNECT + MOVE_100_200_50[:2]   # the descent was never sent
     assert b.snapshot.homing_required and b.snapshot.last_error_code == 33
     refused = b.wait_finished(b.move(0.2, 0.1, 0.0))
     assert 'call gantry/unlock or gantry/home' in refused.outcome
@@ -135,8 +137,8 @@ def test_an_error_reply_latches_a_fault_that_only_unlock_clears(bench):
 
 
 @pytest.mark.parametrize(('faults', 'reason'), [
-    (FaultInjection(garble_reply_to_line=3), 'unrecognised reply'),
-    (FaultInjection(drop_reply_to_line=3), "no reply to 'G53 G1 X100.000 Y200.000 F1500.0'"),
+    (FaultInjection(garble_reply_to_line=4), 'unrecognised reply'),
+    (FaultInjection(drop_reply_to_line=4), "no reply to 'G53 G1 X100.000 Y200.000 F1500.0'"),
 ])
 def test_a_garbled_or_missing_reply_latches_a_fault_and_nothing_is_resent(
         bench, faults, reason):
@@ -145,7 +147,7 @@ def test_a_garbled_or_missing_reply_latches_a_fault_and_nothing_is_resent(
     b.ready()
     result = b.wait_finished(b.move(0.1, 0.2, 0.05))
     assert not result.success and reason in result.outcome
-    assert b.written == PREAMBLE + MOVE_100_200_50[:2]
+    assert b.written == CONNECT + MOVE_100_200_50[:2]
     assert b.snapshot.fault and b.snapshot.homing_required
     b.run_until(lambda: b.controller.state == 'Idle', 'the controller finishing the line')
     assert b.wait_finished(b.request('unlock')).success
@@ -186,7 +188,7 @@ def test_after_a_reconnection_only_homing_allows_motion_and_nothing_is_replayed(
     assert b.wait_finished(b.request('home')).success
     b.ready()
     job = b.move(0.1, 0.2, 0.05)
-    b.run_until(lambda: len(b.written) >= 4, 'the move streaming')
+    b.run_until(lambda: len(b.written) >= 5, 'the move streaming')
     b.session.connection_lost('device vanished', b.now)
     b.pump()
     lost = b.finished(job)
@@ -201,7 +203,7 @@ def test_after_a_reconnection_only_homing_allows_motion_and_nothing_is_replayed(
     assert 'homing required' in refused.outcome
     assert b.wait_finished(b.request('home')).success
     assert b.wait_finished(b.move(0.1, 0.2, 0.05)).success
-    assert b.written[len(written_before):] == ['$X'] + PREAMBLE + ['$H'] + PREAMBLE \
+    assert b.written[len(written_before):] == ['$$', '$X'] + PREAMBLE + ['$H'] + PREAMBLE \
         + MOVE_100_200_50
     assert Counter(b.written)['G53 G1 X100.000 Y200.000 F1500.0'] == 2   # once per move
 
@@ -263,4 +265,4 @@ def test_a_plan_outside_the_workspace_is_refused_without_writing(bench):
     b.ready()
     result = b.wait_finished(b.move(0.1, 0.1, 0.18))
     assert not result.success and 'outside the workspace' in result.outcome
-    assert b.written == PREAMBLE
+    assert b.written == CONNECT
