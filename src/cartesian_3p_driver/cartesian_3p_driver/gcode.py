@@ -293,8 +293,9 @@ def check_feed(feed_mm_min: float, config: MotionConfig) -> float:
         return config.default_feed_mm_min
     if not math.isfinite(feed_mm_min) or feed_mm_min < config.min_feed_mm_min:
         raise TargetRejectedError(
-            f'feed {feed_mm_min:g} mm/min is below min_feed_rate_mm_min '
-            f'({config.min_feed_mm_min:g} mm/min); 0 uses the default feed')
+            f'feed {feed_mm_min:g} mm/min refused: allowed are finite feeds from '
+            f'min_feed_rate_mm_min ({config.min_feed_mm_min:g} mm/min) up, or 0 for the '
+            'default feed')
     return feed_mm_min
 
 

@@ -214,6 +214,7 @@ def test_homing_is_required_at_start_when_configured(bench):
     b.open()
     assert b.wait_finished(b.request('unlock')).success
     assert 'homing required' in b.wait_finished(b.move(0.1, 0.1, 0.1)).outcome
+    b.controller.settings.homing_rate_mm_min = 3000.0
     assert b.wait_finished(b.request('home')).success
     assert b.wait_finished(b.move(0.1, 0.1, 0.1)).success
 
@@ -266,3 +267,93 @@ def test_a_plan_outside_the_workspace_is_refused_without_writing(bench):
     result = b.wait_finished(b.move(0.1, 0.1, 0.18))
     assert not result.success and 'outside the workspace' in result.outcome
     assert b.written == CONNECT
+
+
+# -- the controller's own settings ----------------------------------------------------------
+
+def test_settings_are_read_once_per_connection_and_a_short_travel_refuses_motion(bench):
+    b = bench(settings=ControllerSettings(homing_enabled=False,
+                                          max_travel_mm=[300.0, 300.0, 200.0]))
+    b.open()
+    b.run_until(lambda: b.snapshot.settings_problem, 'the settings checked')
+    assert '$130=300.000' in b.snapshot.settings_problem
+    assert 'controller settings refuse motion' in b.snapshot.fault
+    refused = b.wait_finished(b.move(0.1, 0.1, 0.1))
+    assert not refused.success and '$130=300.000' in refused.outcome
+    assert b.written == CONNECT                           # the preamble still goes out
+    assert len([log for log in b.logs('error') if '$130' in log]) == 1   # logged once
+    assert b.wait_finished(b.request('unlock')).success  # unlocking does not help
+    assert 'controller settings' in b.wait_finished(b.move(0.1, 0.1, 0.1)).outcome
+    assert b.written.count('$$') == 1
+
+
+def test_a_rate_above_the_controller_maximum_refuses_motion(bench):
+    b = bench(settings=ControllerSettings(homing_enabled=False,
+                                          max_rate_mm_min=[6000.0, 2000.0, 3000.0]))
+    b.open()
+    b.run_until(lambda: b.snapshot.settings_problem, 'the settings checked')
+    assert 'max_rate_mm_min for Y is 3000 mm/min' in b.snapshot.settings_problem
+    assert '$111=2000.000' in b.snapshot.settings_problem
+
+
+def test_a_negative_space_machine_fits_its_travel(bench):
+    # Stock Grbl after homing: machine X from -400 to 0 holds world x from 0 to 0.4 m.
+    from cartesian_3p_driver.gcode import MachineTransform
+    motion = MotionConfig(transform=MachineTransform(offset_mm=(-400.0, -300.0, -200.0)))
+    b = bench(motion=motion)
+    b.open()
+    b.ready()
+    assert b.snapshot.settings_problem == ''
+
+
+def test_settings_missing_from_the_reply_refuse_motion(bench):
+    b = bench()
+    b.controller.settings.as_dollar_lines = lambda: ['$10=1']
+    b.open()
+    b.run_until(lambda: b.snapshot.settings_problem, 'the settings checked')
+    assert 'did not report $20, $110' in b.snapshot.settings_problem
+
+
+# -- stop during homing, feeds ---------------------------------------------------------------
+
+def test_stop_during_homing_resets_at_once_and_homing_stays_required(bench):
+    b = bench(settings=ControllerSettings(homing_enabled=True, homing_rate_mm_min=10.0))
+    b.open()
+    b.controller.position = [100.0, 100.0, 100.0]
+    home = b.request('home')
+    b.run_until(lambda: b.controller.state == 'Home', 'homing running')
+    stop = b.request('stop')
+    assert b.commands()[-1] == 'RESET'                    # no feed hold: Grbl ignores it here
+    result = b.wait_finished(stop)
+    assert result.success and 'homing is incomplete' in result.message
+    assert 'interrupted by gantry/stop' in b.finished(home).message
+    b.run_until(lambda: b.snapshot.state == 'Alarm', 'Alarm reported')
+    assert b.snapshot.last_alarm_code == 6 and b.snapshot.homing_required
+    assert '!' not in b.commands()
+    assert b.wait_finished(b.request('unlock')).success
+    assert 'homing required' in b.wait_finished(b.move(0.1, 0.1, 0.1)).outcome
+    b.controller.settings.homing_rate_mm_min = 3000.0
+    assert b.wait_finished(b.request('home')).success
+    assert b.wait_finished(b.move(0.1, 0.1, 0.1)).success
+    assert_each_line_written_once(b)
+
+
+@pytest.mark.parametrize('feed', [1e-12, 9.9, -5.0, float('nan'), float('inf')])
+def test_feeds_below_the_minimum_are_refused_without_writing(bench, feed):
+    b = bench()
+    b.open()
+    b.ready()
+    result = b.wait_finished(b.move(0.1, 0.1, 0.1, feed_mm_min=feed))
+    assert not result.success and 'min_feed_rate_mm_min' in result.outcome
+    assert b.written == CONNECT
+
+
+def test_the_minimum_feed_itself_and_zero_for_the_default_are_accepted(bench):
+    b = bench(motion=MotionConfig(min_feed_mm_min=600.0))
+    b.open()
+    b.ready()
+    assert b.wait_finished(b.move(0.01, 0.0, 0.15, feed_mm_min=600.0)).success
+    first = [line.split()[-1] for line in b.written[len(CONNECT):]]
+    assert set(first) == {'F600.0'}
+    assert b.wait_finished(b.move(0.02, 0.0, 0.15)).success
+    assert b.written[-1].endswith('F1500.0')
