@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from chain.processes import REPO_ROOT, ProcessGroup, executable_path, wait_for
+from chain.processes import REPO_ROOT, ProcessGroup, executable_path, process_set, wait_for
 
 DEFAULT_BAG = REPO_ROOT / 'bags' / 'demo_scenes'
 DEFAULT_PARAMS = REPO_ROOT / 'chain' / 'demo_params.yaml'
@@ -104,17 +104,17 @@ class DemoRun:
         """Start the simulated gantry, the driver and the three perception nodes."""
         for log in (self.sent_log, self.received_log):
             log.unlink(missing_ok=True)
-        params = ['--params-file', str(self.params_file)]
-        self.group.start_node('cartesian_3p_driver', 'fake_gantry', *params,
-                              '-p', f'link_path:={self.gantry_link}',
-                              '-p', f'received_lines_log:={self.received_log}')
-        wait_for(self.gantry_link.exists, 30.0, 'the simulated gantry pseudo-terminal',
-                 watch=self.group)
-        self.group.start_node('cartesian_3p_driver', 'gantry_driver_node', *params,
-                              '-p', f'port:={self.gantry_link}',
-                              '-p', f'sent_lines_log:={self.sent_log}')
-        for executable in ('stereo_sync_node', 'correlation_node', 'fuzzy_best_point_node'):
-            self.group.start_node('stereo_fuzzy_perception', executable, *params)
+        # The processes of chain_without_hardware.launch.py, from the same description.
+        processes = process_set('chain_without_hardware')
+        arguments = processes.argument_values({'port': str(self.gantry_link),
+                                               'params_file': str(self.params_file)})
+        extra = {'fake_gantry': ['-p', f'received_lines_log:={self.received_log}'],
+                 'gantry_driver_node': ['-p', f'sent_lines_log:={self.sent_log}']}
+        for process in processes.processes:
+            self.group.start_described(process, arguments, *extra.get(process.name, ()))
+            if process.name == 'fake_gantry':
+                wait_for(self.gantry_link.exists, 30.0, 'the simulated gantry pseudo-terminal',
+                         watch=self.group)
 
     def start_recorder(self) -> Path:
         """Record the chain's outputs into a bag under the output folder."""
