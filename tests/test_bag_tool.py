@@ -101,7 +101,7 @@ def test_bag_info_reports_topics_types_counts_and_duration(tiny_bag):
     missing = subprocess.run([str(executable_path(PACKAGE, 'bag')), 'info',
                               str(tiny_bag / 'nothing')], capture_output=True, text=True,
                              timeout=60)
-    assert missing.returncode == 1 and 'not a rosbag2 directory' in missing.stderr
+    assert missing.returncode == 1 and 'does not exist' in missing.stderr
 
 
 def test_render_scenes_is_reproducible(tiny_bag, tmp_path):

@@ -12,7 +12,10 @@ from __future__ import annotations
 
 import contextlib
 import functools
-from collections.abc import Iterable, Iterator, Sequence
+import math
+import re
+import time
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -74,11 +77,14 @@ class BagWriter:
     Topics may be added at any time before the messages written to them. Compression 'zstd'
     compresses MCAP chunks (storage-level, what `ros2 bag record --storage-preset-profile
     zstd_fast` does), so every MCAP reader opens the file without a rosbag2 decompressor.
+    With a size or duration limit the bag is split as rosbag2 splits it: files
+    <name>_0.mcap, <name>_1.mcap, ... listed in one metadata.yaml.
     """
 
     def __init__(self, path: Path | str, compression: str = 'zstd',
                  compression_level: int | None = None,
-                 typestore: Typestore | None = None) -> None:
+                 typestore: Typestore | None = None, max_bag_size: int = 0,
+                 max_bag_duration_ns: int = 0) -> None:
         """Create the bag directory.
 
         Args:
@@ -86,29 +92,60 @@ class BagWriter:
             compression: 'zstd' (chunk compression) or 'none'.
             compression_level: zstd level (1-22); rosbags' default (3) when None.
             typestore: Types to take definitions from (Jazzy's plus this project's when None).
+            max_bag_size: Start a new file once the current one holds about this many bytes
+                (0: no limit; the chunk in memory counts uncompressed).
+            max_bag_duration_ns: Start a new file once a message is this much later than the
+                file's first [ns] (0: no limit).
 
         Raises:
-            BagError: When the directory exists or the compression is unknown.
+            BagError: When the directory exists, the compression is unknown or a limit is
+                negative.
         """
         if compression not in COMPRESSIONS:
             raise BagError(f'unknown compression {compression!r}; expected one of '
                            + ', '.join(COMPRESSIONS))
+        if max_bag_size < 0 or max_bag_duration_ns < 0:
+            raise BagError('split limits must not be negative, got '
+                           f'{max_bag_size} bytes, {max_bag_duration_ns} ns')
         self.path = Path(path)
+        if self.path.exists():
+            raise BagError(f'{self.path} exists already, not overwriting')
         self.typestore = typestore or project_typestore()
+        self.compression = compression
+        self.compression_level = compression_level
+        self.max_bag_size = max_bag_size
+        self.max_bag_duration_ns = max_bag_duration_ns
+        self._splitting = bool(max_bag_size or max_bag_duration_ns)
+        self._topics: dict[str, tuple[str, tuple[Qos, ...], str | None, str | None]] = {}
+        self._custom_data: dict[str, str] = {}
+        self._finished_splits: list[dict[str, Any]] = []
+        self._closed = False
+        if self._splitting:
+            self.path.mkdir(parents=True)
+        self._open_file()
+
+    def _open_file(self) -> None:
+        target = (self.path / f'{self.path.name}_{len(self._finished_splits)}'
+                  if self._splitting else self.path)
         try:
-            self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+            self._writer = Writer(target, version=9, storage_plugin=StoragePlugin.MCAP)
         except WriterError as error:
             raise BagError(str(error)) from None
-        if compression == 'zstd':
+        if self.compression == 'zstd':
             self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         self._writer.open()
         storage = self._writer.storage
-        if compression == 'zstd' and compression_level is not None:
+        if self.compression == 'zstd' and self.compression_level is not None:
             # rosbags compresses each chunk with storage.compressor; only the level changes.
             storage.compressor = functools.partial(  # type: ignore[union-attr]
-                zstd.compress, level=compression_level)
+                zstd.compress, level=self.compression_level)
+        self._file_path = target / f'{target.name}.mcap'
+        self._file_start_ns: int | None = None
         self._connections: dict[str, Connection] = {}
-        self._closed = False
+        for topic, (msgtype, qos, msgdef, type_hash) in self._topics.items():
+            self._connections[topic] = self._writer.add_connection(
+                topic, msgtype, typestore=self.typestore, msgdef=msgdef, rihs01=type_hash,
+                offered_qos_profiles=list(qos))
 
     def __enter__(self) -> BagWriter:
         return self
@@ -131,10 +168,10 @@ class BagWriter:
         Raises:
             BagError: When the topic exists with another type or the type is unknown.
         """
-        known = self._connections.get(topic)
+        known = self._topics.get(topic)
         if known is not None:
-            if known.msgtype != msgtype:
-                raise BagError(f'topic {topic} is already in {self.path} as {known.msgtype}, '
+            if known[0] != msgtype:
+                raise BagError(f'topic {topic} is already in {self.path} as {known[0]}, '
                                f'cannot add it as {msgtype}')
             return
         if msgdef is None or type_hash is None:
@@ -143,10 +180,28 @@ class BagWriter:
         self._connections[topic] = self._writer.add_connection(
             topic, msgtype, typestore=self.typestore, msgdef=msgdef, rihs01=type_hash,
             offered_qos_profiles=list(offered_qos))
+        self._topics[topic] = (msgtype, tuple(offered_qos), msgdef, type_hash)
 
     def set_custom_data(self, key: str, value: str) -> None:
         """Store `key: value` under custom_data in metadata.yaml (e.g. how the bag was made)."""
+        self._custom_data[key] = value
         self._writer.set_custom_data(key, value)
+
+    def _file_full(self, timestamp_ns: int) -> bool:
+        if self._file_start_ns is None:
+            return False
+        if self.max_bag_duration_ns and (
+                timestamp_ns - self._file_start_ns >= self.max_bag_duration_ns):
+            return True
+        return bool(self.max_bag_size) and self._file_size() >= self.max_bag_size
+
+    def _file_size(self) -> int:
+        """Return the current file's size, counting the chunk still in memory uncompressed."""
+        storage = self._writer.storage
+        try:
+            return int(storage.bio.tell() + storage.chunk.bio.tell())  # type: ignore[union-attr]
+        except AttributeError:  # another rosbags version: what reached the disk
+            return self._file_path.stat().st_size
 
     def write(self, topic: str, timestamp_ns: int, data: bytes) -> None:
         """Append one serialized (CDR) message received or stamped at `timestamp_ns` [ns].
@@ -154,16 +209,66 @@ class BagWriter:
         Raises:
             BagError: When the topic was not added.
         """
-        connection = self._connections.get(topic)
-        if connection is None:
+        if topic not in self._topics:
             raise BagError(f'topic {topic} was not added to {self.path}')
-        self._writer.write(connection, int(timestamp_ns), data)
+        if self._splitting and self._file_full(timestamp_ns):
+            self._finish_file()
+            self._open_file()
+        if self._file_start_ns is None:
+            self._file_start_ns = int(timestamp_ns)
+        self._writer.write(self._connections[topic], int(timestamp_ns), data)
+
+    def _finish_file(self) -> None:
+        """Close the current split and move its file up into the bag directory."""
+        self._writer.close()
+        folder = self._file_path.parent
+        metadata_file = folder / 'metadata.yaml'
+        information = yaml.safe_load(metadata_file.read_text())['rosbag2_bagfile_information']
+        self._file_path.replace(self.path / self._file_path.name)
+        metadata_file.unlink()
+        folder.rmdir()
+        self._finished_splits.append(information)
 
     def close(self) -> None:
-        """Finish the MCAP file and write metadata.yaml (safe to call twice)."""
-        if not self._closed:
-            self._closed = True
+        """Finish the MCAP file(s) and write metadata.yaml (safe to call twice)."""
+        if self._closed:
+            return
+        self._closed = True
+        if not self._splitting:
             self._writer.close()
+            return
+        self._finish_file()
+        merged = _merge_split_metadata(self._finished_splits)
+        merged['custom_data'] = dict(self._custom_data) or None
+        (self.path / 'metadata.yaml').write_text(yaml.safe_dump(
+            {'rosbag2_bagfile_information': merged}, default_flow_style=False, sort_keys=False))
+
+
+def _merge_split_metadata(splits: list[dict[str, Any]]) -> dict[str, Any]:
+    """Return one bag's metadata from the metadata of its files, each written as a bag."""
+    merged = dict(splits[0])
+    merged['relative_file_paths'] = [name for split in splits
+                                     for name in split['relative_file_paths']]
+    merged['files'] = [entry for split in splits for entry in split['files']]
+    counted = [entry for entry in merged['files'] if entry['message_count']]
+    if counted:
+        start = min(entry['starting_time']['nanoseconds_since_epoch'] for entry in counted)
+        end = max(entry['starting_time']['nanoseconds_since_epoch']
+                  + entry['duration']['nanoseconds'] for entry in counted)
+        merged['starting_time'] = {'nanoseconds_since_epoch': start}
+        merged['duration'] = {'nanoseconds': end - start}
+    merged['message_count'] = sum(split['message_count'] for split in splits)
+    topics: dict[str, dict[str, Any]] = {}
+    for split in splits:
+        for entry in split['topics_with_message_count']:
+            name = entry['topic_metadata']['name']
+            if name in topics:
+                topics[name]['message_count'] += entry['message_count']
+            else:
+                topics[name] = {'topic_metadata': entry['topic_metadata'],
+                                'message_count': entry['message_count']}
+    merged['topics_with_message_count'] = list(topics.values())
+    return merged
 
 
 # --- reading ---------------------------------------------------------------------------------
@@ -251,7 +356,7 @@ def _open_source(path: Path | str) -> _Source:
             raise BagError(f'{bag} is neither a rosbag2 directory nor an .mcap file')
         return _Source(bag, (bag,), None)
     if not bag.is_dir():
-        raise BagError(f'{bag} does not exist')
+        raise BagError(f'{bag} does not exist (expected a rosbag2 directory or an .mcap file)')
     metadata_file = bag / 'metadata.yaml'
     if not metadata_file.is_file():
         files = tuple(sorted(bag.glob('*.mcap')))
@@ -493,6 +598,43 @@ def format_info(info: BagInfo) -> str:
     return '\n'.join(lines)
 
 
+# --- topic selection -------------------------------------------------------------------------
+
+
+def select_topics(available: Iterable[str], topics: Iterable[str] | None = None,
+                  regex: str | None = None, exclude_topics: Iterable[str] = (),
+                  exclude_regex: str | None = None) -> tuple[str, ...]:
+    """Return the topics of `available` that a selection keeps, in the order of `available`.
+
+    As `ros2 bag play|record`: a topic is kept when it is named in `topics` or matches `regex`
+    (everything when neither is given), and then dropped when it is in `exclude_topics` or
+    matches `exclude_regex`. Names are made absolute; regexes match anywhere (re.search).
+
+    Raises:
+        BagError: For a regex that does not compile.
+    """
+    def compiled(pattern: str | None, option: str) -> re.Pattern[str] | None:
+        if pattern is None:
+            return None
+        try:
+            return re.compile(pattern)
+        except re.error as error:
+            raise BagError(f'{option} {pattern!r} is not a regular expression ({error})') \
+                from None
+
+    include = compiled(regex, '--regex')
+    exclude = compiled(exclude_regex, '--exclude-regex')
+    named = None if topics is None else {absolute_topic(name) for name in topics}
+    excluded = {absolute_topic(name) for name in exclude_topics}
+    kept = []
+    for topic in available:
+        wanted = (named is None and include is None) or (named is not None and topic in named) \
+            or (include is not None and include.search(topic) is not None)
+        if wanted and topic not in excluded and not (exclude and exclude.search(topic)):
+            kept.append(topic)
+    return tuple(kept)
+
+
 # --- playback --------------------------------------------------------------------------------
 
 
@@ -525,3 +667,60 @@ def playback_delay_s(timestamp_ns: int, first_ns: int, rate: float) -> float:
     if not rate > 0.0:
         raise BagError(f'playback rate must be positive, got {rate}')
     return max(0, timestamp_ns - first_ns) / 1e9 / rate
+
+
+class PlaybackClock:
+    """Bag time during playback: runs at `rate` times real time, stands still while paused.
+
+    Bag time `first_ns` is "now" when the clock is made; pausing freezes it, resuming goes on
+    from where it stood, and jump_to() moves it (a step to the next message while paused).
+    """
+
+    def __init__(self, first_ns: int, rate: float, paused: bool = False,
+                 now: Callable[[], float] = time.monotonic) -> None:
+        """Start the clock at bag time `first_ns`, paused or running.
+
+        Raises:
+            BagError: For a rate that is not positive.
+        """
+        if not rate > 0.0:
+            raise BagError(f'playback rate must be positive, got {rate}')
+        self._now = now
+        self.rate = rate
+        self._anchor_bag_ns = first_ns
+        self._anchor_wall = now()
+        self._paused = paused
+
+    @property
+    def paused(self) -> bool:
+        """Return True while the clock stands still."""
+        return self._paused
+
+    def bag_time_ns(self) -> int:
+        """Return the current bag time [ns]."""
+        if self._paused:
+            return self._anchor_bag_ns
+        return self._anchor_bag_ns + round((self._now() - self._anchor_wall) * self.rate * 1e9)
+
+    def pause(self) -> None:
+        """Stop the clock where it stands (no effect when paused)."""
+        if not self._paused:
+            self._anchor_bag_ns = self.bag_time_ns()
+            self._paused = True
+
+    def resume(self) -> None:
+        """Run the clock on from where it stood (no effect when running)."""
+        if self._paused:
+            self._anchor_wall = self._now()
+            self._paused = False
+
+    def jump_to(self, bag_ns: int) -> None:
+        """Set the current bag time to `bag_ns` [ns], paused or running."""
+        self._anchor_bag_ns = bag_ns
+        self._anchor_wall = self._now()
+
+    def seconds_until(self, bag_ns: int) -> float:
+        """Return the wall time until bag time `bag_ns` [s] (inf while paused, 0 if past)."""
+        if self._paused:
+            return math.inf
+        return max(0.0, (bag_ns - self.bag_time_ns()) / 1e9 / self.rate)
