@@ -63,18 +63,20 @@ class ProcessSpec:
         resolved: dict[str, ParameterValue] = {}
         for name, value in self.overrides:
             if isinstance(value, str):
-                value = _ARGUMENT.sub(
-                    lambda match, name=name: self._argument(match['name'], name, arguments),
-                    value)
+                value = _ARGUMENT.sub(self._substitution(name, arguments), value)
             resolved[name] = value
         return resolved
 
-    def _argument(self, argument: str, override: str, arguments: Mapping[str, str]) -> str:
-        if argument not in arguments:
-            raise ChainDescriptionError(
-                f'{self.name}: override {override} uses $({argument}), which is not an '
-                f'argument; arguments: {", ".join(sorted(arguments))}')
-        return arguments[argument]
+    def _substitution(self, override: str,
+                      arguments: Mapping[str, str]) -> Callable[[re.Match[str]], str]:
+        def value_of(match: re.Match[str]) -> str:
+            argument = match['name']
+            if argument not in arguments:
+                raise ChainDescriptionError(
+                    f'{self.name}: override {override} uses $({argument}), which is not an '
+                    f'argument; arguments: {", ".join(sorted(arguments))}')
+            return arguments[argument]
+        return value_of
 
 
 @dataclass(frozen=True)
@@ -238,7 +240,7 @@ def launch_description(set_name: str, description_file: Path) -> Any:
     remappings as ros_arguments() gives the process starter.
     """
     from ament_index_python.packages import get_package_share_directory
-    from launch import LaunchDescription
+    from launch import LaunchDescription  # type: ignore[attr-defined,unused-ignore]
     from launch.actions import DeclareLaunchArgument, OpaqueFunction
     from launch.substitutions import LaunchConfiguration
     from launch_ros.actions import Node
