@@ -58,3 +58,18 @@ def test_recipe_runs_as_written_against_fake_gantry(start_ros_process, tmp_path)
     assert '[launch_chain] started gantry_driver_node' in output, output
     assert re.search(r'\[launch_chain\] stopped: .*gantry_driver_node \(0\)', output), output
     assert fake.process.poll() is None, fake.output()
+
+
+def test_every_command_the_readmes_name_is_on_path_after_env_sh():
+    commands = ('stereo_sync_node', 'correlation_node', 'fuzzy_best_point_node',
+                'gantry_driver_node', 'fake_gantry', 'gantry', 'bag', 'render_scenes',
+                'launch_chain')
+    result = subprocess.run(
+        ['bash', '-c', 'source scripts/env.sh && for c in "$@"; do command -v "$c" || '
+                       'echo "missing $c"; done', 'bash', *commands],
+        cwd=REPO_ROOT, capture_output=True, text=True, timeout=60,
+        env={key: value for key, value in os.environ.items() if key != 'PATH'}
+        | {'PATH': '/usr/bin:/bin'})
+    assert result.returncode == 0, result.stderr
+    assert 'missing' not in result.stdout, result.stdout
+    assert len(result.stdout.split()) == len(commands)
