@@ -54,8 +54,11 @@ def _project(points_camera: np.ndarray, K: np.ndarray, D: np.ndarray) -> np.ndar
 
 def _text(canvas: np.ndarray, text: str, origin: tuple[int, int], scale: float = 0.5,
           colour: tuple[int, int, int] = WHITE, thickness: int = 1) -> None:
-    """Write text with a dark outline, readable on any background."""
-    cv2.putText(canvas, text, origin, FONT, scale, (0, 0, 0), thickness + 2, cv2.LINE_AA)
+    """Write text on a dark box, readable on any background."""
+    (width, height), baseline = cv2.getTextSize(text, FONT, scale, thickness)
+    x, y = origin
+    box = canvas[max(0, y - height - 3):y + baseline + 1, max(0, x - 3):x + width + 3]
+    box[:] = (box * 0.35).astype(canvas.dtype)
     cv2.putText(canvas, text, origin, FONT, scale, colour, thickness, cv2.LINE_AA)
 
 
@@ -165,7 +168,9 @@ def _camera_and_zoom(record: object, params: dict) -> tuple[np.ndarray, np.ndarr
                 u, v = in_zoom(pixel)
                 _text(zoom, str(number), (u - 5, v + 6), 0.55, CYAN)
     for pixel, colour, marker in marks:
-        cv2.drawMarker(zoom, in_zoom(pixel), colour, marker, 26, 2)
+        if colour == WHITE:
+            cv2.circle(zoom, in_zoom(pixel), 11, colour, 1, cv2.LINE_AA)
+        cv2.drawMarker(zoom, in_zoom(pixel), colour, marker, 26 if colour == WHITE else 18, 2)
         cv2.drawMarker(canvas, (int(round(pixel[0])), int(round(pixel[1]))), colour, marker,
                        12, 1)
     cv2.rectangle(canvas, (left, top), (left + side - 1, top + side - 1), YELLOW, 1)
@@ -216,7 +221,9 @@ def _top_view(record: object, gantry_path: np.ndarray) -> np.ndarray:
     if marker is not None:
         centre = _point(marker.pose.position)[:2]
         half = np.array([marker.scale.x, marker.scale.y]) / 2
-        footprint = (centre, half, marker.type)
+        q = marker.pose.orientation
+        yaw = float(np.arctan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z)))
+        footprint = (centre, half, marker.type, yaw)
         points += [np.append(centre - half, 0.0), np.append(centre + half, 0.0)]
     xy = [np.asarray(p)[:2] for p in points] + list(gantry_path[:, :2])
     if not xy:
@@ -243,22 +250,26 @@ def _top_view(record: object, gantry_path: np.ndarray) -> np.ndarray:
         y = to_canvas(np.array([centre_xy[0], value]))[1]
         cv2.line(canvas, (0, y), (PANEL, y), (48, 48, 48), 1)
     if footprint is not None:
-        centre, half, kind = footprint
+        centre, half, kind, yaw = footprint
+        corners = np.array([[-half[0], -half[1]], [half[0], -half[1]], [half[0], half[1]],
+                            [-half[0], half[1]]])
+        rotation = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
         if kind == 3:  # visualization_msgs/Marker.CYLINDER
             cv2.ellipse(canvas, to_canvas(centre), (int(half[0] * scale), int(half[1] * scale)),
-                        0, 0, 360, GREY, -1, cv2.LINE_AA)
+                        -np.degrees(yaw), 0, 360, GREY, -1, cv2.LINE_AA)
         else:
-            cv2.rectangle(canvas, to_canvas(centre + [-half[0], half[1]]),
-                          to_canvas(centre + [half[0], -half[1]]), GREY, -1)
+            outline = np.array([to_canvas(centre + rotation @ c) for c in corners], np.int32)
+            cv2.fillPoly(canvas, [outline], GREY, cv2.LINE_AA)
     if len(gantry_path) > 1:
         path = np.array([to_canvas(p) for p in gantry_path], np.int32)
         cv2.polylines(canvas, [path], False, YELLOW, 1, cv2.LINE_AA)
     if len(gantry_path):
         cv2.circle(canvas, to_canvas(gantry_path[-1]), 6, YELLOW, 2, cv2.LINE_AA)
     if record.ground_truth is not None:
-        cv2.drawMarker(canvas, to_canvas(record.ground_truth), WHITE, cv2.MARKER_CROSS, 20, 2)
+        cv2.circle(canvas, to_canvas(record.ground_truth), 9, WHITE, 1, cv2.LINE_AA)
+        cv2.drawMarker(canvas, to_canvas(record.ground_truth), WHITE, cv2.MARKER_CROSS, 22, 2)
     if record.best_point is not None:
-        cv2.drawMarker(canvas, to_canvas(record.best_point), RED, cv2.MARKER_TILTED_CROSS, 20,
+        cv2.drawMarker(canvas, to_canvas(record.best_point), RED, cv2.MARKER_TILTED_CROSS, 14,
                        2)
     _text(canvas, f'top view (world x right, y up; grid {step * 100:.0f} cm)', (8, 20))
     _legend(canvas, [('object footprint', GREY), ('gantry path, final position', YELLOW),
