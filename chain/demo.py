@@ -15,6 +15,7 @@ is reported and pictured, a scene passes when it got a best point that the gantr
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -34,6 +35,7 @@ from chain.regression import (
     scene_outcomes,
     write_reference,
 )
+from chain.ros_domains import reserved_domain_id
 
 DEFAULT_BAG = REPO_ROOT / 'bags' / 'demo_scenes'
 DEFAULT_PARAMS = REPO_ROOT / 'chain' / 'demo_params.yaml'
@@ -380,9 +382,14 @@ def main(argv: list[str] | None = None) -> int:
     if arguments.compare is not None and not arguments.compare.exists():
         parser.error(f'--compare {arguments.compare} does not exist')
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    run = DemoRun(arguments.bag, arguments.params, arguments.output, arguments.tolerance_mm,
-                  arguments.rate, arguments.timeout)
-    results = run.run()
+    with contextlib.ExitStack() as stack:
+        if 'ROS_DOMAIN_ID' not in os.environ:
+            # A ROS domain of its own: another chain on this machine (a second demo, a test)
+            # would otherwise feed its best points and gantry states into this run.
+            os.environ['ROS_DOMAIN_ID'] = str(stack.enter_context(reserved_domain_id()))
+        run = DemoRun(arguments.bag, arguments.params, arguments.output,
+                      arguments.tolerance_mm, arguments.rate, arguments.timeout)
+        results = run.run()
     table = format_table(results)
     print(table)
     (arguments.output / 'results.json').write_text(
@@ -406,9 +413,14 @@ def main(argv: list[str] | None = None) -> int:
         report += f'\n## Compared with {arguments.compare}\n\n{comparison}\n'
     (arguments.output / 'results.md').write_text(report)
     if arguments.write_reference is not None:
+        def shown(path: Path) -> str:  # repository paths as the README writes them
+            absolute = path.resolve()
+            return str(absolute.relative_to(REPO_ROOT) if absolute.is_relative_to(REPO_ROOT)
+                       else path)
+
         count = write_reference(outputs_bag, arguments.write_reference,
-                                f'scripts/demo.sh --bag {arguments.bag} --write-reference '
-                                f'{arguments.write_reference}')
+                                f'scripts/demo.sh --bag {shown(arguments.bag)} '
+                                f'--write-reference {shown(arguments.write_reference)}')
         print(f'wrote {count} best points and decisions into {arguments.write_reference}')
     if not results:
         print('no object was seen: did the bag play?', file=sys.stderr)
