@@ -31,6 +31,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
 RIG_FIELDS = ('baseline_m', 'alpha_deg', 'theta_deg', 'x0_m', 'y0_m', 'z0_m', 'vergence_deg')
 PANEL = 480  # side of the zoom and top-view panels [px]
 TITLE_HEIGHT = 44
+OBJECT_RISE_PX = 0.4  # disparity above the row's surface that outlines an object [px]
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 WHITE, RED, MAGENTA, CYAN = (255, 255, 255), (0, 0, 255), (255, 0, 255), (255, 255, 0)
 GREY, YELLOW = (150, 150, 150), (0, 220, 255)
@@ -206,9 +207,21 @@ def disparity_picture(record: object, size: tuple[int, int]) -> np.ndarray | Non
         scaled = np.clip((disparity - low) / max(high - low, 1e-6) * 255, 0, 255)
         coloured = cv2.applyColorMap(scaled.astype(np.uint8), cv2.COLORMAP_TURBO)
         picture[valid] = coloured[valid]
+        # What rises above the work surface: more disparity than the row's median (in the
+        # rectified image the surface's disparity changes with the row only), outlined white.
+        masked = np.where(valid, disparity, np.nan)
+        rows_with_data = valid.any(axis=1)
+        surface = np.zeros(disparity.shape[0], np.float32)
+        surface[rows_with_data] = np.nanmedian(masked[rows_with_data], axis=1)
+        above = (valid & (disparity - surface[:, None] > OBJECT_RISE_PX)).astype(np.uint8)
+        above = cv2.morphologyEx(above, cv2.MORPH_OPEN, np.ones((5, 5), np.uint8))
+        contours, _ = cv2.findContours(above, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        cv2.drawContours(picture, [c for c in contours if cv2.contourArea(c) >= 150], -1, WHITE,
+                         1, cv2.LINE_AA)
     picture = cv2.resize(picture, size, interpolation=cv2.INTER_NEAREST)
     _text(picture, f'disparity {message.min_disparity:.0f}-{message.max_disparity:.0f} px '
-                   '(rectified left; black: no match)', (8, 20))
+                   f'(rectified left; black: no match; white: > {OBJECT_RISE_PX:g} px above '
+                   'the surface)', (8, 20))
     return picture
 
 
