@@ -68,7 +68,8 @@ def mcap_ros2_file(path, typestore, count: int = 20) -> None:
 
 def unindexed_mcap_file(path, typestore, count: int = 20) -> None:
     """Write an .mcap file without chunks, statistics or summary."""
-    from mcap.writer import IndexType, Writer as McapWriter
+    from mcap.writer import IndexType
+    from mcap.writer import Writer as McapWriter
 
     with path.open('wb') as stream:
         writer = McapWriter(stream, use_chunking=False, use_statistics=False,
