@@ -180,10 +180,19 @@ class DemoRun:
             self._progress('homing the gantry')
             home = node.create_client(Trigger, 'gantry/home')
             wait_for(home.service_is_ready, 30.0, 'the gantry/home service', spin, self.group)
-            future = home.call_async(Trigger.Request())
-            wait_for(future.done, 120.0, 'homing to finish', spin, self.group)
-            if not future.result().success:
-                raise RuntimeError(f'homing failed: {future.result().message}')
+            # The driver may report the controller's state a moment before its link accepts
+            # requests ('not connected'): ask again until homing succeeds or time runs out.
+            deadline = time.monotonic() + 60.0
+            while True:
+                future = home.call_async(Trigger.Request())
+                wait_for(future.done, 120.0, 'homing to finish', spin, self.group)
+                if future.result().success:
+                    break
+                if time.monotonic() >= deadline:
+                    raise RuntimeError(f'homing failed: {future.result().message}')
+                pause_until = time.monotonic() + 0.5
+                while time.monotonic() < pause_until:
+                    spin(0.05)
             wait_for(monitor.gantry_ready, 60.0, 'the gantry to be Idle after homing', spin,
                      self.group)
             self.lines_sent_at_start = monitor.latest_gantry_state.lines_sent
