@@ -105,6 +105,13 @@ class GantryCommander:
                 raise NoAnswerError(what)
             self.executor.spin_once(timeout_sec=min(0.05, remaining))
 
+    def _pause(self, seconds: float) -> None:
+        until = time.monotonic() + seconds
+        while time.monotonic() < until:
+            if self.interrupted():
+                raise KeyboardInterrupt
+            self.executor.spin_once(timeout_sec=0.05)
+
     def _resolved(self, name: str) -> str:
         return self.node.resolve_service_name(name)
 
@@ -122,13 +129,21 @@ class GantryCommander:
             self._spin_until(client.service_is_ready, self.wait_s, self._no_driver(name))
         except NoAnswerError as error:
             return EXIT_NO_ANSWER, str(error)
-        future = client.call_async(Trigger.Request())
-        try:
-            self._spin_until(future.done, timeout_s,
-                             f'{name} did not answer within {timeout_s:g} s')
-        except NoAnswerError as error:
-            return EXIT_NO_ANSWER, str(error)
-        response = future.result()
+        # A driver that has just started may not have opened its link yet: within the wait
+        # for the driver, a refusal for that reason is asked again.
+        link_deadline = time.monotonic() + self.wait_s
+        while True:
+            future = client.call_async(Trigger.Request())
+            try:
+                self._spin_until(future.done, timeout_s,
+                                 f'{name} did not answer within {timeout_s:g} s')
+            except NoAnswerError as error:
+                return EXIT_NO_ANSWER, str(error)
+            response = future.result()
+            if response.success or 'not connected' not in response.message or (
+                    time.monotonic() >= link_deadline):
+                break
+            self._pause(0.5)
         verdict = 'done' if response.success else 'refused'
         return (EXIT_OK if response.success else EXIT_FAILED), f'{kind} {verdict}: ' + (
             response.message or '(no message)')
