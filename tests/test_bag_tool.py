@@ -349,18 +349,40 @@ def test_play_skips_a_type_that_is_not_installed_and_plays_the_rest(
         probe.close()
 
 
-def test_play_a_single_mcap_file_written_by_the_mcap_library(
-        tmp_path, ros_context, start_ros_process):
+def _write_single_mcap(path: Path, indexed: bool) -> None:
+    """20 strings in one .mcap file: by the mcap library's ROS 2 writer, or by the bare mcap
+    writer without chunks, index or summary (as old writers left files)."""
+    from mcap.writer import IndexType
+    from mcap.writer import Writer as McapWriter
     from mcap_ros2.writer import Writer as Ros2Writer
 
-    path = tmp_path / 'single.mcap'
+    typestore = _typestore_with_unknown_type()
     with path.open('wb') as stream:
-        writer = Ros2Writer(stream)
-        schema = writer.register_msgdef('std_msgs/msg/String', 'string data')
+        if indexed:
+            writer = Ros2Writer(stream)
+            schema = writer.register_msgdef('std_msgs/msg/String', 'string data')
+            for k in range(20):
+                writer.write_message('/chatter', schema, {'data': f'm{k}'},
+                                     log_time=2_000_000_000 + k * 10_000_000)
+            writer.finish()
+            return
+        writer = McapWriter(stream, use_chunking=False, use_statistics=False,
+                            use_summary_offsets=False, index_types=IndexType.NONE)
+        writer.start(profile='ros2', library='an old writer')
+        schema_id = writer.register_schema('std_msgs/msg/String', 'ros2msg', b'string data')
+        channel = writer.register_channel('/chatter', 'cdr', schema_id)
         for k in range(20):
-            writer.write_message('/chatter', schema, {'data': f'm{k}'},
-                                 log_time=2_000_000_000 + k * 10_000_000)
+            stamp = 2_000_000_000 + k * 10_000_000
+            writer.add_message(channel, log_time=stamp, publish_time=stamp,
+                               data=chatter_bytes(typestore, f'm{k}'))
         writer.finish()
+
+
+@pytest.mark.parametrize('indexed', [True, False], ids=['mcap_ros2_writer', 'unindexed'])
+def test_play_a_single_mcap_file_written_by_the_mcap_library(
+        tmp_path, ros_context, start_ros_process, indexed):
+    path = tmp_path / 'single.mcap'
+    _write_single_mcap(path, indexed)
     probe = RawProbe(ros_context, {'/chatter': 'std_msgs/msg/String'})
     try:
         player = start_ros_process(PACKAGE, 'bag', 'play', str(path), '--rate', '4',
