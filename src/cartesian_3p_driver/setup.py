@@ -23,6 +23,7 @@ setup(
         'console_scripts': [
             'gantry_driver_node = cartesian_3p_driver.gantry_driver_node:main',
             'fake_gantry = cartesian_3p_driver.fake_gantry:main',
+            'gantry = cartesian_3p_driver.gantry_command:main',
         ],
     },
 )

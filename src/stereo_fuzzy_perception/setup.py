@@ -12,6 +12,9 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
+        # launch files and the process description they (and chain/processes.py) read
+        ('share/' + package_name + '/launch',
+         glob('launch/*.launch.py') + glob('launch/*.yaml')),
     ],
     package_data={package_name: ['data/*.yaml', 'data/*.npz']},
     # The matcher's C kernel (see its header comment). -ffp-contract=off: no fused multiply-add,
