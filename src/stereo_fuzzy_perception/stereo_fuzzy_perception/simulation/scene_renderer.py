@@ -564,7 +564,7 @@ class SceneRenderer:
         half = (factor - 1) // 2
         fine = np.pad(fine, ((0, half), (half, 0), (0, 0)), mode='edge')[half:, :factor * width]
         rgb = fine.reshape(height, factor, width, factor, 3).mean(axis=(1, 3))
-        ideal = np.clip(np.round(rgb), 0, 255).astype(np.uint8)
+        ideal: np.ndarray = np.clip(np.round(rgb), 0, 255).astype(np.uint8)
         if maps is None:
             return ideal
         distorted: np.ndarray = cv2.remap(ideal, *maps, interpolation=cv2.INTER_LINEAR,
