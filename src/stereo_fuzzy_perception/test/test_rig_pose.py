@@ -139,11 +139,11 @@ def test_baseline_that_disagrees_with_the_calibration_is_refused_with_both_numbe
 def test_pose_source_takes_the_baseline_from_the_calibration():
     calibration = stereo_calibration(SimulatedCamera(), StereoRig(baseline_m=0.08))
     source = CameraPoseSource.from_settings(StereoRig(baseline_m=0.0))
-    np.testing.assert_allclose(source.world_from_left(calibration),
+    np.testing.assert_allclose(source.world_from_camera(calibration),
                                StereoRig(baseline_m=0.08).world_from_left_camera(), atol=1e-12)
     refusing = CameraPoseSource.from_settings(StereoRig(baseline_m=0.10))
     with pytest.raises(RigPoseError, match='0.1000.*0.0800'):
-        refusing.world_from_left(calibration)
+        refusing.world_from_camera(calibration)
 
 
 def test_pose_file_overrides_the_chapter_numbers(tmp_path):
@@ -153,8 +153,11 @@ def test_pose_file_overrides_the_chapter_numbers(tmp_path):
     path.write_text(pose_file_text([measured]))
     source = CameraPoseSource.from_settings(StereoRig(baseline_m=0.0), str(path))
     calibration = stereo_calibration(SimulatedCamera(), StereoRig())
-    pose = source.world_from_left(calibration)
+    pose = source.world_from_camera(calibration)
     np.testing.assert_allclose(pose, measured.matrix(), atol=1e-9)
     assert rotation_angle_deg(pose[:3, :3], StereoRig().world_from_left_camera()[:3, :3]) > 5.0
-    with pytest.raises(RigPoseError, match="no transform from 'other_frame'"):
-        CameraPoseSource.from_settings(StereoRig(), str(path), camera_frame='other_frame')
+    assert source.connects(LEFT_CAMERA_FRAME) and not source.connects('other_frame')
+    with pytest.raises(RigPoseError, match="rig_pose.yaml: no transform from 'other_frame'"):
+        source.world_from_camera(calibration, 'other_frame')
+    with pytest.raises(RigPoseError, match="no transform mentions the world frame 'map'"):
+        CameraPoseSource.from_settings(StereoRig(), str(path), world_frame='map')

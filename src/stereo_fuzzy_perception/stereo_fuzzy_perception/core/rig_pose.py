@@ -371,57 +371,78 @@ def camera_pose_from_file(path: str | Path, world_frame: str = WORLD_FRAME,
 
 @dataclass(frozen=True)
 class CameraPoseSource:
-    """The left camera's pose in `world`: from a pose file, /tf_static, or the chapter's numbers.
+    """The camera's pose in `world`: from transforms (a pose file, /tf_static) or the chapter.
 
     Attributes:
-        rig: The chapter's rig numbers; used when `fixed_pose` is None. Its baseline is replaced
-            by the calibration's, so the left camera sits where the calibration says.
+        rig: The chapter's rig numbers; used when `transforms` is empty. Its baseline is
+            replaced by the calibration's, so the left camera sits where the calibration says.
         configured_baseline_m: A baseline the user configured [m]; 0 = none (take the
             calibration's). When set, a calibration that disagrees is refused.
-        fixed_pose: 4x4 world <- left optical pose from a pose file or /tf_static, or None.
+        transforms: Static transforms that connect `world_frame` with the camera frame.
+        world_frame: Frame of the best point.
         origin: Where the pose comes from, for log lines.
     """
 
     rig: StereoRig
     configured_baseline_m: float = 0.0
-    fixed_pose: np.ndarray | None = None
-    origin: str = 'rig.* parameters'
+    transforms: tuple[Transform, ...] = ()
+    world_frame: str = WORLD_FRAME
+    origin: str = 'the rig.* parameters'
 
     @classmethod
     def from_settings(cls, rig: StereoRig, pose_file: str = '',
-                      world_frame: str = WORLD_FRAME,
-                      camera_frame: str = LEFT_CAMERA_FRAME) -> CameraPoseSource:
+                      world_frame: str = WORLD_FRAME) -> CameraPoseSource:
         """Build the source: `pose_file` (when not empty) overrides the rig's pose numbers.
 
         Args:
             rig: The chapter's numbers; rig.baseline_m > 0 is checked against calibrations.
             pose_file: A pose file, or '' for the chapter's numbers.
-            world_frame: Frame of the best point.
-            camera_frame: The left camera's optical frame, as named in the pose file.
+            world_frame: Frame of the best point; the pose file must contain it.
 
         Raises:
-            RigPoseError: When the pose file is unusable or lacks world <- camera.
+            RigPoseError: When the pose file is unusable or never mentions `world_frame`.
         """
         if not pose_file:
-            return cls(rig, rig.baseline_m)
-        pose = camera_pose_from_file(pose_file, world_frame, camera_frame)
-        return cls(rig, rig.baseline_m, pose, f'pose file {pose_file}')
+            return cls(rig, rig.baseline_m, world_frame=world_frame)
+        transforms = tuple(read_pose_file(pose_file))
+        frames = {t.frame_id for t in transforms} | {t.child_frame_id for t in transforms}
+        if world_frame not in frames:
+            raise RigPoseError(f'{pose_file}: no transform mentions the world frame '
+                               f'{world_frame!r}; frames: {", ".join(sorted(frames))}')
+        return cls(rig, rig.baseline_m, transforms, world_frame, f'pose file {pose_file}')
 
-    def with_pose(self, pose: np.ndarray, origin: str) -> CameraPoseSource:
-        """Return this source with a fixed world <- left optical pose (e.g. from /tf_static)."""
-        return CameraPoseSource(self.rig, self.configured_baseline_m,
-                                np.asarray(pose, dtype=float), origin)
+    def with_transforms(self, transforms: Iterable[Transform], origin: str) -> CameraPoseSource:
+        """Return this source taking the pose from `transforms` (e.g. those of /tf_static)."""
+        return CameraPoseSource(self.rig, self.configured_baseline_m, tuple(transforms),
+                                self.world_frame, origin)
 
-    def world_from_left(self, calibration: StereoCalibration) -> np.ndarray:
-        """Return the 4x4 world <- left optical pose for matches made with `calibration`.
+    def connects(self, camera_frame: str) -> bool:
+        """Return True when the transforms place `camera_frame` in the world frame."""
+        try:
+            lookup_transform(self.transforms, self.world_frame, camera_frame)
+        except RigPoseError:
+            return False
+        return True
+
+    def world_from_camera(self, calibration: StereoCalibration,
+                          camera_frame: str = LEFT_CAMERA_FRAME) -> np.ndarray:
+        """Return the 4x4 world <- camera pose for matches made with `calibration`.
+
+        Args:
+            calibration: The rectified calibration the matches were made with.
+            camera_frame: The matches' frame (the left optical frame).
 
         Raises:
-            RigPoseError: When a configured baseline disagrees with the calibration's.
+            RigPoseError: When a configured baseline disagrees with the calibration's, or the
+                transforms do not connect `camera_frame` with the world frame.
         """
         if self.configured_baseline_m > 0.0:
             check_baseline(self.configured_baseline_m, calibration)
-        if self.fixed_pose is not None:
-            return self.fixed_pose
+        if self.transforms:
+            try:
+                return lookup_transform(self.transforms, self.world_frame, camera_frame)
+            except RigPoseError as error:
+                raise RigPoseError(f'{self.origin}: {error}') from error
         rig = StereoRig(baseline_m=calibration.baseline_m, alpha_deg=self.rig.alpha_deg,
                         theta_deg=self.rig.theta_deg, x0_m=self.rig.x0_m, y0_m=self.rig.y0_m,
                         z0_m=self.rig.z0_m, vergence_deg=self.rig.vergence_deg)
