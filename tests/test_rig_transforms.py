@@ -159,6 +159,7 @@ def test_tf_static_places_the_camera_when_no_pose_file_is_given(harness):
     from stereo_fuzzy_perception.core.rig_pose import chapter_left_camera_transform
     from stereo_fuzzy_perception.nodes import qos
     from stereo_fuzzy_perception.nodes.conversions import transforms_to_tf_message
+
     from tf2_msgs.msg import TFMessage
 
     rig = other_rig()
@@ -215,6 +216,7 @@ def test_rig_transforms_node_publishes_the_pose_file_and_right_camera_on_tf_stat
     from stereo_fuzzy_perception.nodes.rig_transforms_node import RigTransformsNode
     from stereo_fuzzy_perception.simulation.scene_model import SimulatedCamera
     from stereo_fuzzy_perception.simulation.scene_renderer import stereo_calibration
+
     from tf2_msgs.msg import TFMessage
 
     rig = other_rig()
@@ -254,3 +256,35 @@ def test_rig_transforms_node_without_a_pose_file_ends_with_the_reason(ros_contex
 
     with pytest.raises(ValueError, match='rig_pose_file is empty'):
         RigTransformsNode(context=ros_context)
+
+
+def test_driver_publishes_world_to_tool_on_tf_at_the_reported_position(ros_context, tmp_path):
+    from gantry_harness import GantryClient, at, start_simulator
+    from stereo_fuzzy_perception.nodes import qos
+
+    from tf2_msgs.msg import TFMessage
+
+    simulator = start_simulator(tmp_path)
+    client = GantryClient(ros_context, tmp_path, {})
+    transforms: list = []
+    client.node.create_subscription(TFMessage, '/tf', transforms.append, qos.TF)
+    try:
+        client.wait_ready()
+        client.publish_target(0.1, 0.2, 0.05)
+        client.wait_state(lambda s: s.state == 'Idle' and at(s.world_position, 0.1, 0.2, 0.05),
+                          'Idle at (0.1, 0.2, 0.05)')
+
+        def tool_at_target() -> bool:
+            if not transforms:
+                return False
+            (tool,) = transforms[-1].transforms
+            t = tool.transform.translation
+            return at(t, 0.1, 0.2, 0.05)
+
+        client.wait(tool_at_target, '/tf with world -> tool at the target')
+        (tool,) = transforms[-1].transforms
+        assert (tool.header.frame_id, tool.child_frame_id) == ('world', 'tool')
+        assert tool.transform.rotation.w == 1.0
+    finally:
+        client.close()
+        simulator.stop()

@@ -150,3 +150,29 @@ def test_right_calibration_gives_the_demo_rig_pose_file_round_trip(tmp_path):
                  '-o', str(output)]) == 0
     (read,) = read_pose_file(output)
     np.testing.assert_allclose(read.matrix(), StereoRig().world_from_left_camera(), atol=1e-9)
+
+
+def test_committed_demo_pose_file_and_urdf_are_what_the_helper_writes(tmp_path):
+    """The demo rig's pose file and the gantry URDF are generated; regenerate them with the
+    commands below when the demo rig or the driver's workspace changes."""
+    repo = Path(__file__).resolve().parents[3]
+    pose_file = repo / 'src/stereo_fuzzy_perception/config/demo_rig_pose.yaml'
+    urdf_file = repo / 'src/cartesian_3p_driver/urdf/cartesian_3p.urdf'
+    assert main(['chapter', '--alpha', '45', '--theta', '0', '--z0', '0.4', '--x0', '0.2',
+                 '--y0', '-0.25', '--vergence', '6', '--baseline', '0.06',
+                 '-o', str(tmp_path / 'pose.yaml')]) == 0
+    assert (tmp_path / 'pose.yaml').read_text() == pose_file.read_text()
+    assert main(['urdf', '--pose-file', str(pose_file), '-o', str(tmp_path / 'g.urdf')]) == 0
+    assert (tmp_path / 'g.urdf').read_text() == urdf_file.read_text()
+    import sys
+
+    sys.path.insert(0, str(repo / 'src/cartesian_3p_driver'))
+    from cartesian_3p_driver.gantry_driver_parameters import PARAMETERS
+
+    defaults = {spec.name: spec.default for spec in PARAMETERS}
+    robot = ElementTree.parse(urdf_file).getroot()
+    joints = {joint.get('name'): joint for joint in robot.iter('joint')}
+    for axis, name in enumerate(defaults['joint_names']):
+        limit = joints[name].find('limit')
+        assert float(limit.get('lower')) == defaults['workspace_min_m'][axis]
+        assert float(limit.get('upper')) == defaults['workspace_max_m'][axis]

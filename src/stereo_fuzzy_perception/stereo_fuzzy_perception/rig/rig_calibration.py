@@ -12,7 +12,8 @@
         --vergence 6 --left-calibration left.yaml --right-calibration right.yaml \\
         --output rig_pose.yaml
 
-    # The URDF of the gantry (limits = workspace) with the cameras of a pose file:
+    # The URDF of the gantry (limits = workspace) with the cameras of a pose file (and the
+    # right camera from the calibration files, when given):
     rig_calibration urdf --pose-file rig_pose.yaml --output cartesian_3p.urdf
 
 The pose file is what fuzzy_best_point_node (rig_pose_file), rig_transforms_node and tf2_ros'
@@ -45,6 +46,7 @@ from stereo_fuzzy_perception.core.rig_pose import (
     Transform,
     chapter_left_camera_transform,
     read_pose_file,
+    right_camera_transform,
     rpy_from_matrix,
     write_pose_file,
 )
@@ -153,6 +155,12 @@ def run_chapter(args: argparse.Namespace) -> str:
 def run_urdf(args: argparse.Namespace) -> str:
     """Write the gantry's URDF with the mounts of a pose file."""
     mounts = read_pose_file(args.pose_file) if args.pose_file else []
+    if args.left_calibration or args.right_calibration:
+        if not (args.left_calibration and args.right_calibration):
+            raise RigCalibrationError('--left-calibration and --right-calibration go together')
+        mounts.append(right_camera_transform(StereoCalibration(
+            read_calibration_yaml(args.left_calibration),
+            read_calibration_yaml(args.right_calibration))))
     text = gantry_urdf(args.workspace_min, args.workspace_max, mounts, args.joint_names)
     Path(args.output).write_text(text)
     return f'wrote {args.output} ({len(mounts)} mount(s) from {args.pose_file or "no file"})'
@@ -211,6 +219,9 @@ def build_parser() -> argparse.ArgumentParser:
     urdf.add_argument('--workspace-max', type=float, nargs=3, default=DEFAULT_WORKSPACE_MAX,
                       metavar=('X', 'Y', 'Z'), help='upper joint limits [m]')
     urdf.add_argument('--joint-names', nargs=3, default=list(JOINT_NAMES))
+    urdf.add_argument('--left-calibration', default='',
+                      help='with --right-calibration: mount the right camera on the left one')
+    urdf.add_argument('--right-calibration', default='')
     urdf.add_argument('--output', '-o', required=True, help='URDF file to write')
     urdf.set_defaults(run=run_urdf)
     return parser
