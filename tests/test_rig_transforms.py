@@ -288,3 +288,34 @@ def test_driver_publishes_world_to_tool_on_tf_at_the_reported_position(ros_conte
     finally:
         client.close()
         simulator.stop()
+
+
+def test_rendered_bags_carry_the_rig_they_were_rendered_with_on_tf_static(tmp_path):
+    from rclpy.serialization import deserialize_message
+    from stereo_fuzzy_perception.bag.bag_io import read_info, read_messages
+    from stereo_fuzzy_perception.core.rig_pose import lookup_transform
+    from stereo_fuzzy_perception.nodes.conversions import tf_message_to_transforms
+    from stereo_fuzzy_perception.simulation.scene_bag_writer import (
+        SceneBagSettings,
+        write_scene_bag,
+    )
+    from stereo_fuzzy_perception.simulation.scene_model import SimulatedCamera
+
+    from tf2_msgs.msg import TFMessage
+
+    rig = other_rig()
+    path = tmp_path / 'bag'
+    write_scene_bag(SceneBagSettings(path, object_types=('circle',), scenes_per_type=1,
+                                     camera=SimulatedCamera(width=160, height=120), rig=rig))
+    (message,) = list(read_messages(path, ['/tf_static']))
+    transforms = tf_message_to_transforms(deserialize_message(message.data, TFMessage))
+    np.testing.assert_allclose(
+        lookup_transform(transforms, 'world', 'left_camera_optical_frame'),
+        rig.world_from_left_camera(), atol=1e-9)
+    np.testing.assert_allclose(
+        lookup_transform(transforms, 'world', 'right_camera_optical_frame'),
+        rig.world_from_right_camera(), atol=1e-6)
+    from rosbags.interfaces import QosDurability
+
+    (offered,) = read_info(path).topic('/tf_static').offered_qos
+    assert offered.durability == QosDurability.TRANSIENT_LOCAL
