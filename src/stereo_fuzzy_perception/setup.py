@@ -31,6 +31,7 @@ setup(
             'correlation_node = stereo_fuzzy_perception.nodes.correlation_node:main',
             'fuzzy_best_point_node = stereo_fuzzy_perception.nodes.fuzzy_best_point_node:main',
             'rig_transforms_node = stereo_fuzzy_perception.nodes.rig_transforms_node:main',
+            'stereo_camera_node = stereo_fuzzy_perception.nodes.stereo_camera_node:main',
             'rig_calibration = stereo_fuzzy_perception.rig.rig_calibration:main',
             'bag = stereo_fuzzy_perception.bag.bag_tool:main',
             'render_scenes = stereo_fuzzy_perception.simulation.scene_bag_writer:main',
