@@ -72,10 +72,15 @@ class Harness:
         self.executor.add_node(self.probe)
         self.decisions: list = []
         self.markers: list = []
+        self.diagnostics: list = []
         self.probe.create_subscription(FuzzyDecision, 'best_point/decision',
                                        self.decisions.append, qos.RESULTS)
         self.probe.create_subscription(MarkerArray, 'best_point/markers', self.markers.append,
                                        qos.RESULTS)
+        from diagnostic_msgs.msg import DiagnosticArray
+
+        self.probe.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics.append,
+                                       qos.DIAGNOSTICS)
         self.publisher = self.probe.create_publisher(StereoMatches, 'stereo/matches',
                                                      qos.RESULTS)
         wait_until(lambda: self.publisher.get_subscription_count() > 0
@@ -173,6 +178,15 @@ def test_tf_static_places_the_camera_when_no_pose_file_is_given(harness):
     decision = run.send(matches_message(scene, stamp_sec=1), 1)
     assert decision.status == 'ok', decision.status
     assert best_point_error_mm(decision, scene) < 3.0
+
+    def reported_source() -> str:
+        if not run.diagnostics:
+            return ''
+        values = {kv.key: kv.value for kv in run.diagnostics[-1].status[0].values}
+        return values.get('camera pose from', '')
+
+    wait_until(lambda: reported_source() == '/tf_static', TIMEOUT,
+               "/diagnostics naming /tf_static as the camera pose's source", run.executor)
 
 
 def test_markers_show_area_border_numbered_centres_and_best_point(harness):

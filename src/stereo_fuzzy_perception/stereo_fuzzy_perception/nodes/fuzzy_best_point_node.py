@@ -2,10 +2,9 @@
 
 Subscribes `stereo/matches` (StereoMatches) and `/tf_static`, publishes `best_point`
 (PointStamped in `world`, stamped with the pair's stamp, only when a point was chosen),
-`best_point/decision`
-(FuzzyDecision, for every input, with the reason when no point was chosen), `best_point/markers`
-(MarkerArray in `world`: the correlation area, border points, numbered area centres and best
-point, while someone subscribes) and /diagnostics.
+`best_point/decision` (FuzzyDecision, for every input, with the reason when no point was
+chosen), `best_point/markers` (MarkerArray in `world`: the correlation area, border points,
+numbered area centres and best point, while someone subscribes) and /diagnostics.
 The algorithm is point_selectors.BestPointChooser; this node only converts and publishes. A
 decision takes a few milliseconds even at 100k points, so it runs in the subscription callback and
 every input gets its decision.
@@ -249,6 +248,8 @@ class FuzzyBestPointNode(Node):
         else:
             status.level, status.message = DiagnosticStatus.WARN, self._last_status
         values: list[tuple[str, object]] = [('selector', self._chooser.selector),
+                                            ('camera pose from', self._pose_origin or
+                                             self._pose_source.origin),
                                             ('decisions made', made),
                                             ('decisions refused', sum(refused.values()))]
         values += [(f'refused {reason}', count) for reason, count in refused.items()]
