@@ -333,3 +333,19 @@ def test_rendered_bags_carry_the_rig_they_were_rendered_with_on_tf_static(tmp_pa
 
     (offered,) = read_info(path).topic('/tf_static').offered_qos
     assert offered.durability == QosDurability.TRANSIENT_LOCAL
+
+
+def test_tf_message_stand_in_has_the_type_hash_of_jazzy_tf2_msgs():
+    """Same type hash as Jazzy's own tf2_msgs/msg/TFMessage (which rosbags ships), so DDS,
+    RViz, Foxglove and ros2 bag on a full install take our /tf and /tf_static as theirs."""
+    import json
+    from pathlib import Path
+
+    from ament_index_python.packages import get_package_share_directory
+    from rosbags.typesys import Stores, get_typestore
+
+    description = Path(get_package_share_directory('tf2_msgs')) / 'msg' / 'TFMessage.json'
+    hashes = {entry['type_name']: entry['hash_string']
+              for entry in json.loads(description.read_text())['type_hashes']}
+    jazzy = get_typestore(Stores.ROS2_JAZZY)
+    assert hashes['tf2_msgs/msg/TFMessage'] == jazzy.hash_rihs01('tf2_msgs/msg/TFMessage')
