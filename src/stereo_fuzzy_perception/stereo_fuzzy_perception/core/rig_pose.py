@@ -41,6 +41,8 @@ from stereo_fuzzy_perception.core.yaml_file import read_yaml_file
 WORLD_FRAME = 'world'
 LEFT_CAMERA_FRAME = 'left_camera_optical_frame'
 RIGHT_CAMERA_FRAME = 'right_camera_optical_frame'
+# CameraPoseSource.origin when the pose comes from the chapter's numbers
+RIG_PARAMETERS = 'the rig.* parameters'
 # A configured baseline may differ from the calibration's by this much [m] (rounding in files).
 BASELINE_TOLERANCE_M = 0.0005
 _QUATERNION_NORM_TOLERANCE = 1e-3
@@ -387,7 +389,7 @@ class CameraPoseSource:
     configured_baseline_m: float = 0.0
     transforms: tuple[Transform, ...] = ()
     world_frame: str = WORLD_FRAME
-    origin: str = 'the rig.* parameters'
+    origin: str = RIG_PARAMETERS
 
     @classmethod
     def from_settings(cls, rig: StereoRig, pose_file: str = '',

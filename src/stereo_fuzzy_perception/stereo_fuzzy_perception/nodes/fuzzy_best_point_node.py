@@ -51,6 +51,7 @@ from stereo_fuzzy_perception.core.best_point.point_selectors import (
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.rig_pose import (
     LEFT_CAMERA_FRAME,
+    RIG_PARAMETERS,
     CameraPoseSource,
     RigPoseError,
     Transform,
@@ -82,6 +83,7 @@ RIG_MISMATCH = 'rig_mismatch'
 REFUSAL_REASONS = (NO_POINTS, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED, MALFORMED_INPUT,
                    RIG_MISMATCH)
 ERROR_THROTTLE_S = 5.0
+HINT_THROTTLE_S = 60.0
 
 
 def build_chooser(values: dict[str, ParameterValue]) -> BestPointChooser:
@@ -192,6 +194,13 @@ class FuzzyBestPointNode(Node):
                                             reason=str(error)), header, msg.header.frame_id)
             return
         decision = chooser.decide(points, left, right)
+        if (decision.status == NO_POINTS and decision.points_in > 0
+                and not self._pose_source.transforms and self._pose_origin == RIG_PARAMETERS):
+            self.get_logger().warning(
+                f'none of {decision.points_in} points lands in the workspace with the camera '
+                'pose of the rig.* parameters: if they do not describe this rig, give its pose '
+                'file (rig_pose_file, written by rig_calibration) or publish it on /tf_static',
+                throttle_duration_sec=HINT_THROTTLE_S)
         self._publish(decision, header, msg.header.frame_id)
 
     def _on_tf_static(self, msg: TFMessage) -> None:
