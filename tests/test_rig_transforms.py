@@ -349,3 +349,37 @@ def test_tf_message_stand_in_has_the_type_hash_of_jazzy_tf2_msgs():
               for entry in json.loads(description.read_text())['type_hashes']}
     jazzy = get_typestore(Stores.ROS2_JAZZY)
     assert hashes['tf2_msgs/msg/TFMessage'] == jazzy.hash_rihs01('tf2_msgs/msg/TFMessage')
+
+
+def test_a_new_rig_from_its_calibration_files_and_one_run_of_the_helper(harness, tmp_path):
+    """The issue's goal: calibration YAMLs + one `rig_calibration board` run are all the
+    geometry fuzzy_best_point_node needs for a rig its rig.* defaults do not describe."""
+    import cv2
+    from stereo_fuzzy_perception.core.board_pose import CheckerBoard
+    from stereo_fuzzy_perception.core.camera_calibration_file import write_calibration_yaml
+    from stereo_fuzzy_perception.rig.rig_calibration import main
+    from stereo_fuzzy_perception.simulation.scene_renderer import SceneRenderer
+
+    rig = other_rig()
+    # An 11x8 board of 30 mm squares where the left camera's axis meets the surface, turned 12
+    # degrees; the user measured where its corner lies.
+    board = CheckerBoard(11, 8, 0.03, origin_x_m=0.0141, origin_y_m=-0.1654, yaw_deg=12.0)
+    with SceneRenderer(rig=rig) as renderer:
+        s = board.square_m
+        width, height = board.size_m
+        image, _ = renderer.render_plane(board.texture(), board.world_from_board(),
+                                         (-s, -s, width + s, height + s))
+        calibration = renderer.calibration
+    cv2.imwrite(str(tmp_path / 'board.png'), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    write_calibration_yaml(calibration.left, 'left', tmp_path / 'left.yaml')
+    write_calibration_yaml(calibration.right, 'right', tmp_path / 'right.yaml')
+    pose_file = tmp_path / 'rig_pose.yaml'
+    assert main(['board', '--left-calibration', str(tmp_path / 'left.yaml'), '--image',
+                 str(tmp_path / 'board.png'), '--columns', '11', '--rows', '8', '--square',
+                 '0.03', '--origin-x', '0.0141', '--origin-y', '-0.1654', '--yaw', '12',
+                 '--output', str(pose_file)]) == 0
+    scene = make_scene(rig, seed=5, kind='cylinder')
+    run = harness({'rig_pose_file': str(pose_file)})
+    decision = run.send(matches_message(scene, stamp_sec=1), 1)
+    assert decision.status == 'ok', decision.status
+    assert best_point_error_mm(decision, scene) < 3.0
