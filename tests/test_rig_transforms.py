@@ -383,3 +383,33 @@ def test_a_new_rig_from_its_calibration_files_and_one_run_of_the_helper(harness,
     decision = run.send(matches_message(scene, stamp_sec=1), 1)
     assert decision.status == 'ok', decision.status
     assert best_point_error_mm(decision, scene) < 3.0
+
+
+def test_tf_message_stand_in_builds_nothing_where_the_real_tf2_msgs_is_installed(tmp_path):
+    """On a full ROS install the stand-in must not shadow the real tf2_msgs (which tf2_ros needs
+    for more than TFMessage): configured against an underlay that has the real package, it
+    installs nothing."""
+    import shutil
+    import subprocess
+    from pathlib import Path
+
+    cmake = shutil.which('cmake')
+    if cmake is None:
+        pytest.skip('cmake is not installed')
+    source = Path(__file__).resolve().parents[1] / 'src' / 'tf2_msgs'
+    underlay = tmp_path / 'opt_ros_jazzy' / 'share' / 'tf2_msgs'
+    (underlay / 'cmake').mkdir(parents=True)
+    (underlay / 'msg').mkdir()
+    (underlay / 'cmake' / 'tf2_msgsConfig.cmake').write_text('set(tf2_msgs_FOUND TRUE)\n')
+    (underlay / 'msg' / 'TF2Error.msg').write_text('uint8 NO_ERROR = 0\n')
+    build, install = tmp_path / 'build', tmp_path / 'install'
+    configured = subprocess.run(
+        [cmake, '-S', str(source), '-B', str(build),
+         f'-DCMAKE_PREFIX_PATH={tmp_path / "opt_ros_jazzy"}', f'-DCMAKE_INSTALL_PREFIX={install}'],
+        capture_output=True, text=True, timeout=120, check=False)
+    assert configured.returncode == 0, configured.stderr
+    assert 'this TFMessage-only stand-in builds nothing' in configured.stdout
+    installed = subprocess.run([cmake, '--install', str(build)], capture_output=True, text=True,
+                               timeout=60, check=False)
+    assert installed.returncode == 0, installed.stderr
+    assert not install.exists() or not any(install.rglob('*')), 'the stand-in installed files'
