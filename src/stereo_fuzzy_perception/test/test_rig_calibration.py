@@ -176,3 +176,20 @@ def test_committed_demo_pose_file_and_urdf_are_what_the_helper_writes(tmp_path):
         limit = joints[name].find('limit')
         assert float(limit.get('lower')) == defaults['workspace_min_m'][axis]
         assert float(limit.get('upper')) == defaults['workspace_max_m'][axis]
+
+
+def test_board_from_a_capture_device_drops_the_first_frames(board_files, tmp_path):
+    # An image pattern stands in for a camera: frame 0 is black (exposure still settling).
+    image, left, _ = board_files
+    frame = cv2.imread(str(image))
+    cv2.imwrite(str(tmp_path / 'cam_000.png'), np.zeros_like(frame))
+    cv2.imwrite(str(tmp_path / 'cam_001.png'), frame)
+    arguments = board_arguments(image, left, tmp_path / 'pose.yaml')
+    at = arguments.index('--image')
+    arguments[at:at + 2] = ['--device', str(tmp_path / 'cam_%03d.png'), '--skip-frames', '1']
+    assert main(arguments) == 0
+    pose = camera_pose_from_file(tmp_path / 'pose.yaml')
+    assert np.linalg.norm(pose[:3, 3] - RIG.world_from_left_camera()[:3, 3]) < 0.001
+    at = arguments.index('--skip-frames')
+    arguments[at + 1] = '0'
+    assert main(arguments) == 1, 'the black first frame has no board'

@@ -72,8 +72,14 @@ def describe(transform: Transform) -> str:
             f'({", ".join(f"{q:.6f}" for q in transform.rotation)})')
 
 
-def read_image(image: str, device: str) -> np.ndarray:
-    """Return the grey image of a file, or one frame of an OpenCV capture device."""
+def read_image(image: str, device: str, skip_frames: int = 0) -> np.ndarray:
+    """Return the grey image of a file, or a frame of an OpenCV capture device.
+
+    Args:
+        image: Image file, or '' to read `device`.
+        device: Device index or path (or a video file).
+        skip_frames: Frames of the device to drop first (auto exposure settling).
+    """
     if image:
         loaded = cv2.imread(image, cv2.IMREAD_GRAYSCALE)
         if loaded is None:
@@ -81,6 +87,8 @@ def read_image(image: str, device: str) -> np.ndarray:
         return np.asarray(loaded)
     capture = cv2.VideoCapture(int(device) if device.isdigit() else device)
     try:
+        for _ in range(skip_frames):
+            capture.grab()
         ok, frame = capture.read()
     finally:
         capture.release()
@@ -94,7 +102,7 @@ def run_board(args: argparse.Namespace) -> str:
     left = read_calibration_yaml(args.left_calibration)
     board = CheckerBoard(args.columns, args.rows, args.square, args.origin_x, args.origin_y,
                          args.yaw, args.surface_z)
-    image = read_image(args.image, args.device)
+    image = read_image(args.image, args.device, args.skip_frames)
     if (image.shape[1], image.shape[0]) != (left.width, left.height):
         raise RigCalibrationError(
             f'image is {image.shape[1]}x{image.shape[0]} but {args.left_calibration} is for '
@@ -183,6 +191,8 @@ def build_parser() -> argparse.ArgumentParser:
     source = board.add_mutually_exclusive_group(required=True)
     source.add_argument('--image', default='', help='image file of the left camera')
     source.add_argument('--device', default='', help='OpenCV capture device (index or path)')
+    board.add_argument('--skip-frames', type=int, default=10,
+                       help='with --device: frames to drop first, while exposure settles')
     board.add_argument('--columns', type=int, default=9, help='inner corners along board x')
     board.add_argument('--rows', type=int, default=6, help='inner corners along board y')
     board.add_argument('--square', type=float, default=0.025, help='square side [m]')
