@@ -413,3 +413,45 @@ def test_tf_message_stand_in_builds_nothing_where_the_real_tf2_msgs_is_installed
                                timeout=60, check=False)
     assert installed.returncode == 0, installed.stderr
     assert not install.exists() or not any(install.rglob('*')), 'the stand-in installed files'
+
+
+def test_installed_rig_transforms_node_serves_the_demo_pose_file_and_refuses_a_bad_one(
+        ros_context, start_ros_process, tmp_path):
+    from pathlib import Path
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+    from stereo_fuzzy_perception.core.rig_pose import lookup_transform
+    from stereo_fuzzy_perception.nodes import qos
+    from stereo_fuzzy_perception.nodes.conversions import tf_message_to_transforms
+
+    from tf2_msgs.msg import TFMessage
+
+    pose_file = (Path(__file__).resolve().parents[1] / 'src' / 'stereo_fuzzy_perception'
+                 / 'config' / 'demo_rig_pose.yaml')
+    process = start_ros_process('stereo_fuzzy_perception', 'rig_transforms_node', '--ros-args',
+                                '-p', f'rig_pose_file:={pose_file}')
+    listener = rclpy.create_node('listener', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(listener)
+    received: list = []
+    listener.create_subscription(TFMessage, '/tf_static', received.append, qos.TF_STATIC)
+    try:
+        wait_until(lambda: received, TIMEOUT, f'/tf_static:\n{process.output()}', executor)
+        np.testing.assert_allclose(
+            lookup_transform(tf_message_to_transforms(received[0]), 'world',
+                             'left_camera_optical_frame'),
+            StereoRig().world_from_left_camera(), atol=1e-9)
+    finally:
+        listener.destroy_node()
+        executor.shutdown()
+    assert process.interrupt() == 0, process.output()
+    broken = tmp_path / 'broken.yaml'
+    broken.write_text('left_camera_pose: [1, 2]\n')
+    refused = start_ros_process('stereo_fuzzy_perception', 'rig_transforms_node', '--ros-args',
+                                '-p', f'rig_pose_file:={broken}')
+    wait_until(lambda: refused.process.poll() is not None, TIMEOUT, 'the refusal')
+    assert refused.process.returncode == 1
+    assert 'cannot start: ' in refused.output() and 'broken.yaml' in refused.output()
+    assert 'Traceback' not in refused.output()

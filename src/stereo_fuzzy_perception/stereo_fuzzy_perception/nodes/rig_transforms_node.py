@@ -9,6 +9,7 @@ Foxglove, `ros2 bag` and fuzzy_best_point_node, started before or after, get the
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import rclpy
@@ -93,18 +94,24 @@ class RigTransformsNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    """Run the node until shutdown."""
+    """Run the node until shutdown; an unusable pose or calibration file ends it (exit 1)."""
     rclpy.init(args=args)
     node = None
+    failed = False
     try:
         node = RigTransformsNode()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except ValueError as error:  # RigPoseError, or a parameter refused at declaration
+        rclpy.logging.get_logger('rig_transforms_node').fatal(f'cannot start: {error}')
+        failed = True
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    if failed:
+        sys.exit(1)
 
 
 if __name__ == '__main__':
