@@ -102,6 +102,8 @@ def test_pose_file_reads_the_dotted_form_and_chains_frames(tmp_path):
     ('p:\n  ros__parameters: {frame_id: c, child_frame_id: c, translation: {x: 0, y: 0, '
      'z: 0}, rotation: {x: 0, y: 0, z: 0, w: 1}}', "both 'c'"),
     ('not: [valid', 'not valid YAML'),
+    ('p:\n  ros__parameters: {frame_id: /world, child_frame_id: c, translation: {x: 0, y: 0, '
+     'z: 0}, rotation: {x: 0, y: 0, z: 0, w: 1}}', "'/world' starts with /"),
 ])
 def test_bad_pose_files_are_refused_with_the_reason(tmp_path, body, expected):
     path = tmp_path / 'pose.yaml'
@@ -109,6 +111,13 @@ def test_bad_pose_files_are_refused_with_the_reason(tmp_path, body, expected):
     with pytest.raises(RigPoseError, match='pose.yaml') as raised:
         read_pose_file(path)
     assert expected in str(raised.value)
+
+
+def test_frames_that_loop_are_refused():
+    transforms = [Transform('a', 'b', (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)),
+                  Transform('b', 'a', (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))]
+    with pytest.raises(RigPoseError, match='loop'):
+        lookup_transform(transforms, 'world', 'a')
 
 
 def test_unconnected_frames_are_refused_naming_the_known_frames():

@@ -89,6 +89,9 @@ class Transform:
                    'must both be set'
         if self.frame_id == self.child_frame_id:
             return f'frame_id and child_frame_id are both {self.frame_id!r}'
+        for frame in (self.frame_id, self.child_frame_id):
+            if frame.startswith('/'):
+                return f'frame {frame!r} starts with / (tf2 refuses such frame ids)'
         values = (*self.translation, *self.rotation)
         if not all(math.isfinite(value) for value in values):
             return f'{self.child_frame_id}: translation or rotation holds NaN or infinity'
