@@ -95,7 +95,9 @@ def test_bag_info_reports_topics_types_counts_and_duration(tiny_bag):
     assert result.returncode == 0, result.stderr
     for topic, msgtype in scene_types().items():
         assert f'Topic: {topic} | Type: {msgtype} | Count: 2 |' in result.stdout
-    assert 'Messages:          12' in result.stdout
+    # and the rig it was rendered with, once
+    assert 'Topic: /tf_static | Type: tf2_msgs/msg/TFMessage | Count: 1 |' in result.stdout
+    assert 'Messages:          13' in result.stdout
     assert 'Duration:          1.000005000 s' in result.stdout
     assert 'Compression:       zstd' in result.stdout
     missing = subprocess.run([str(executable_path(PACKAGE, 'bag')), 'info',
@@ -116,16 +118,18 @@ def test_render_scenes_is_reproducible(tiny_bag, tmp_path):
 
 def test_play_waits_for_subscribers_and_delivers_every_message_in_order(
         tiny_bag, ros_context, start_ros_process):
-    probe = RawProbe(ros_context, scene_types())
+    from stereo_fuzzy_perception.simulation.scene_bag_writer import RIG_TOPICS
+
+    probe = RawProbe(ros_context, {**scene_types(), **RIG_TOPICS})
     try:
         player = start_ros_process(PACKAGE, 'bag', 'play', str(tiny_bag), '--rate', '4',
                                    '--wait-for-subscribers')
         expected = bag_messages(tiny_bag)
-        wait_until(lambda: probe.count() >= 12, TIMEOUT,
-                   f'12 messages from bag play:\n{player.output()}', probe.executor)
+        wait_until(lambda: probe.count() >= 13, TIMEOUT,
+                   f'13 messages from bag play:\n{player.output()}', probe.executor)
         assert wait_for_exit(player, probe.executor, 'bag play') == 0
         assert dict(probe.received) == dict(expected), 'played bytes differ from the bag'
-        assert 'published 12 messages' in player.output()
+        assert 'published 13 messages' in player.output()
     finally:
         probe.close()
 

@@ -15,6 +15,9 @@ PARAMETERS = [
                   read_only=True),
     ParameterSpec('world_frame', 'world', 'The only frame_id accepted for targets',
                   read_only=True),
+    ParameterSpec('tool_frame', 'tool', 'Frame of the tool on /tf: world_frame -> tool_frame at '
+                  "the reported position ('' = no /tf, e.g. when robot_state_publisher "
+                  'runs the URDF)', read_only=True),
     ParameterSpec('joint_names', ['gantry_x_joint', 'gantry_y_joint', 'gantry_z_joint'],
                   'Names of the three prismatic joints published on joint_states',
                   read_only=True),

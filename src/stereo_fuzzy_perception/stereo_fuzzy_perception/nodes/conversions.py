@@ -1,9 +1,9 @@
 """The one module that converts between ROS messages and this package's domain types.
 
 Images <-> numpy arrays (what cv_bridge does), CameraInfo <-> CameraCalibration,
-MatchedPoints <-> PointCloud2, and the fuzzy stage's BestPointDecision -> FuzzyDecision /
-PointStamped. Everything else in the
-package works on domain types.
+MatchedPoints <-> PointCloud2, the fuzzy stage's BestPointDecision -> FuzzyDecision /
+PointStamped / MarkerArray, and rig_pose.Transform <-> TransformStamped / TFMessage.
+Everything else in the package works on domain types.
 """
 
 from __future__ import annotations
@@ -12,10 +12,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, PointStamped
+from geometry_msgs.msg import Point, PointStamped, TransformStamped
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField, RegionOfInterest
 from std_msgs.msg import Header
 from stereo_msgs.msg import DisparityImage
+from visualization_msgs.msg import Marker, MarkerArray
 
 from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches, StereoPair
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration, StereoCalibration
@@ -26,6 +27,8 @@ from stereo_fuzzy_perception.core.image_encoding import (
     to_gray,
 )
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.rig_pose import Transform
+from tf2_msgs.msg import TFMessage
 
 if TYPE_CHECKING:  # annotations only: nodes that never decide need not import scipy
     from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointDecision
@@ -315,3 +318,99 @@ def disparity_image_message(disparity_map: DisparityMap, rectified: StereoCalibr
     msg.max_disparity = float(config.max_disparity) - shift
     msg.delta_d = 1.0 / 16.0 if config.subpixel else 1.0
     return msg
+
+
+# --- transforms (tf2_msgs/TFMessage on /tf and /tf_static) ------------------------------------
+
+
+def transform_to_message(transform: Transform, stamp: Time) -> TransformStamped:
+    """Return a geometry_msgs/TransformStamped (parent frame in the header) of `transform`."""
+    msg = TransformStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = transform.frame_id
+    msg.child_frame_id = transform.child_frame_id
+    msg.transform.translation.x, msg.transform.translation.y, msg.transform.translation.z = (
+        float(value) for value in transform.translation)
+    rotation = msg.transform.rotation
+    rotation.x, rotation.y, rotation.z, rotation.w = (float(value)
+                                                      for value in transform.rotation)
+    return msg
+
+
+def transforms_to_tf_message(transforms: list[Transform], stamp: Time) -> TFMessage:
+    """Return a tf2_msgs/TFMessage holding `transforms`, all stamped `stamp`."""
+    return TFMessage(transforms=[transform_to_message(t, stamp) for t in transforms])
+
+
+def transform_from_message(msg: TransformStamped) -> Transform:
+    """Return the Transform of a TransformStamped (not validated: see Transform.problem())."""
+    translation, rotation = msg.transform.translation, msg.transform.rotation
+    return Transform(msg.header.frame_id, msg.child_frame_id,
+                     (float(translation.x), float(translation.y), float(translation.z)),
+                     (float(rotation.x), float(rotation.y), float(rotation.z),
+                      float(rotation.w)))
+
+
+def tf_message_to_transforms(msg: TFMessage) -> list[Transform]:
+    """Return the usable transforms of a TFMessage; those with a problem() are left out."""
+    transforms = [transform_from_message(item) for item in msg.transforms]
+    return [transform for transform in transforms if transform.problem() is None]
+
+
+# --- markers (visualization_msgs/MarkerArray) -------------------------------------------------
+
+MARKER_NAMESPACE = 'best_point'
+# RGBA of each kind of marker
+_AREA_POINTS_COLOUR = (0.3, 0.6, 1.0, 0.8)
+_BORDER_COLOUR = (1.0, 0.5, 0.0, 1.0)
+_CENTRE_COLOUR = (1.0, 1.0, 0.0, 1.0)
+_BEST_POINT_COLOUR = (0.0, 1.0, 0.0, 1.0)
+
+
+def _marker(header: Header, kind: int, marker_id: int, namespace: str,
+            scale: float, colour: tuple[float, float, float, float]) -> Marker:
+    marker = Marker(header=header, ns=namespace, id=marker_id, type=kind, action=Marker.ADD)
+    marker.pose.orientation.w = 1.0
+    marker.scale.x = marker.scale.y = marker.scale.z = scale
+    marker.color.r, marker.color.g, marker.color.b, marker.color.a = colour
+    return marker
+
+
+def _finite_points(values: np.ndarray) -> list[Point]:
+    rows = np.asarray(values, dtype=float).reshape(-1, 3)
+    return [_point(row) for row in rows if np.all(np.isfinite(row))]
+
+
+def decision_to_markers(decision: BestPointDecision, header: Header,
+                        namespace: str = MARKER_NAMESPACE) -> MarkerArray:
+    """Return markers of one decision in header.frame_id (`world`), for RViz or Foxglove.
+
+    A DELETEALL first clears the previous decision's markers, then (what is known of): the
+    correlation area's points (POINTS, id 0), the four border points (SPHERE_LIST, id 1), the
+    four areas' centres (SPHERE, ids 2-5) with their numbers as in Fig. 4 (TEXT_VIEW_FACING
+    '1'..'4', ids 6-9), and the best point (SPHERE, id 10).
+    """
+    markers = [Marker(header=header, ns=namespace, action=Marker.DELETEALL)]
+    area = _marker(header, Marker.POINTS, 0, namespace, 0.0015, _AREA_POINTS_COLOUR)
+    area.points = _finite_points(decision.area_points_world)
+    if area.points:
+        markers.append(area)
+    border = _marker(header, Marker.SPHERE_LIST, 1, namespace, 0.004, _BORDER_COLOUR)
+    border.points = _finite_points(decision.border_points)
+    if border.points:
+        markers.append(border)
+    for index, centre in enumerate(np.asarray(decision.area_centres, dtype=float)):
+        if not np.all(np.isfinite(centre)):
+            continue
+        sphere = _marker(header, Marker.SPHERE, 2 + index, namespace, 0.004, _CENTRE_COLOUR)
+        sphere.pose.position = _point(centre)
+        label = _marker(header, Marker.TEXT_VIEW_FACING, 6 + index, namespace, 0.012,
+                        _CENTRE_COLOUR)
+        label.pose.position = _point(centre + np.array([0.0, 0.0, 0.008]))
+        label.text = str(index + 1)
+        markers += [sphere, label]
+    if decision.best_point_world is not None:
+        best = _marker(header, Marker.SPHERE, 10, namespace, 0.008, _BEST_POINT_COLOUR)
+        best.pose.position = _point(decision.best_point_world)
+        markers.append(best)
+    return MarkerArray(markers=markers)

@@ -47,9 +47,16 @@ PARAMETERS = [
                   '[m]', 0.0005, 0.1),
     ParameterSpec('min_points', _AREA.min_points,
                   'Fewer points in the correlation area means no best point', 1, 1_000_000),
-    # --- rig pose (the chapter's alpha, theta, z0 generalised; must match the calibration)
-    ParameterSpec('rig.baseline_m', _RIG.baseline_m,
-                  'Distance between the optical centres [m]', 0.001, 2.0, read_only=True),
+    # --- rig pose: a pose file (static_transform_publisher form), /tf_static, or the chapter's
+    # alpha, theta, z0 (+ x0, y0, vergence) converted to the same transform (core/rig_pose.py)
+    ParameterSpec('rig_pose_file', '',
+                  'Pose file with the left camera optical frame in world (the form '
+                  'static_transform_publisher takes); overrides the rig.* pose numbers; '
+                  'empty = use them', read_only=True),
+    ParameterSpec('rig.baseline_m', 0.0,
+                  'Distance between the optical centres [m]; 0 = from the calibration (right '
+                  'P); a value that disagrees with the calibration is refused', 0.0, 2.0,
+                  read_only=True),
     ParameterSpec('rig.alpha_deg', _RIG.alpha_deg,
                   'Rig tilt about its x axis (chapter alpha) [deg]', -90.0, 90.0, read_only=True),
     ParameterSpec('rig.theta_deg', _RIG.theta_deg,
