@@ -38,7 +38,7 @@ ROS_MODULES = {'rclpy', 'std_msgs', 'std_srvs', 'sensor_msgs', 'stereo_msgs', 'g
                'diagnostic_msgs', 'visualization_msgs', 'rosgraph_msgs', 'rcl_interfaces',
                'action_msgs', 'builtin_interfaces', 'stereo_fuzzy_msgs',
                'stereo_fuzzy_parameters', 'launch', 'launch_ros', 'ament_index_python',
-               'cartesian_3p_driver'}
+               'cartesian_3p_driver', 'tf2_msgs'}
 RUNTIME_ONLY_IN = {'launch': 'launch_ros', 'ament_index_python': 'launch_ros'}
 
 
