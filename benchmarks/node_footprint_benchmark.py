@@ -43,7 +43,9 @@ from benchmarks.soak_benchmark import (  # noqa: E402
     DEMO_BAG,
     DEMO_PARAMS,
     DRIVER,
+    INPUT_TOPICS,
     PERCEPTION,
+    PLAYER_DELAY_S,
     MemorySample,
     growth_pct,
     reserved_domain,
@@ -167,7 +169,8 @@ def run_once(label: str, cache_dir: Path, log_dir: Path, domain_id: int, rate: f
         progress(f'{label}: starting the chain (NUMBA_CACHE_DIR {cache_dir})')
         started = start_chain(group, link)
         group.start('bag_play', [executable_path(PERCEPTION, 'bag'), 'play', DEMO_BAG, '--loop',
-                                 '--wait-for-subscribers', '--rate', str(rate)])
+                                 '--wait-for-subscribers', '--rate', str(rate),
+                                 '--topics', *INPUT_TOPICS, '--delay', str(PLAYER_DELAY_S)])
 
         def everything_started() -> bool:
             now = time.monotonic()

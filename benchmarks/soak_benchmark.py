@@ -62,6 +62,11 @@ MAX_LINES_PER_MOVE = 3
 # default 120 s, and reconnections start quickly.
 DRIVER_OVERRIDES = ('homing_timeout_s:=15.0', 'reconnect_initial_s:=0.2',
                     'reconnect_max_s:=2.0')
+# The player waits this long after seeing the subscribers, so that every subscriber has also
+# matched the player's publishers on a loaded machine; the first scenes are not lost [s].
+PLAYER_DELAY_S = 5.0
+# A gantry/home call unanswered this long is a driver defect (homing_timeout_s is 15 s) [s].
+HOME_ANSWER_TIMEOUT_S = 45.0
 
 
 def progress(text: str) -> None:
@@ -252,6 +257,7 @@ class Watcher:
     state: Any = None
     home_calls: int = 0
     home_failures: list[str] = field(default_factory=list)
+    home_unanswered: int = 0
 
     def __post_init__(self) -> None:
         import rclpy
@@ -287,6 +293,7 @@ class Watcher:
         self._trigger = Trigger
         self._home_future: Any = None
         self._next_home_at = 0.0
+        self._home_deadline = 0.0
 
     def _count(self, topic: str) -> None:
         self.input_counts[topic] += 1
@@ -331,6 +338,10 @@ class Watcher:
         future = self._home_future
         if future is not None:
             if not future.done():
+                if time.monotonic() > self._home_deadline:
+                    # The driver never answered: a defect to report, then try again.
+                    self.home_unanswered += 1
+                    self._home_future = None
                 return
             result = future.result()
             if result is None or not result.success:
@@ -343,6 +354,7 @@ class Watcher:
             # At most one call a second: a refused call must not turn into a busy loop.
             self._next_home_at = now + 1.0
             self.home_calls += 1
+            self._home_deadline = now + HOME_ANSWER_TIMEOUT_S
             self._home_future = self.home_client.call_async(self._trigger.Request())
 
     def close(self) -> None:
@@ -377,6 +389,7 @@ class SoakResult:
     best_points: int
     home_calls: int
     home_failures: list[str]
+    home_unanswered: int
     driver: dict[str, str]
     died: list[str]
     exit_codes: dict[str, int]
@@ -451,7 +464,10 @@ def run(args: argparse.Namespace) -> SoakResult:
                      watcher.spin_and_operate, group)
             group.start('bag_play', [executable_path(PERCEPTION, 'bag'), 'play', DEMO_BAG,
                                      '--loop', '--wait-for-subscribers',
-                                     '--rate', str(args.rate)])
+                                     '--rate', str(args.rate), '--topics', *INPUT_TOPICS,
+                                     '--delay', str(PLAYER_DELAY_S)])
+            wait_for(lambda: watcher.played > 0, 120.0, 'the first scene played',
+                     watcher.spin_and_operate, group)
             pids = {process.name: process.process.pid for process in group.processes}
             start = time.monotonic()
             memory.append(sample_memory(pids, 0.0, 'start'))
@@ -501,6 +517,9 @@ def run(args: argparse.Namespace) -> SoakResult:
     problems += line_log_problems(sent, received, watcher.best_points)
     problems += pair_problems(accounting)
     problems += memory_problems(reference, memory[-1], args.max_rss_growth_pct)
+    if watcher.home_unanswered:
+        problems.append(f'{watcher.home_unanswered} gantry/home calls unanswered after '
+                        f'{HOME_ANSWER_TIMEOUT_S:g} s')
     unclean = {name: code for name, code in exit_codes.items() if code != 0}
     if unclean:
         problems.append(f'processes did not exit cleanly: {unclean}')
@@ -509,6 +528,7 @@ def run(args: argparse.Namespace) -> SoakResult:
         duration_s=elapsed, memory=memory, reference=reference, accounting=accounting,
         sent=sent, received=received, best_points=watcher.best_points,
         home_calls=watcher.home_calls, home_failures=watcher.home_failures,
+        home_unanswered=watcher.home_unanswered,
         driver=watcher.diagnostics.get(DRIVER_STATUS, {}), died=died, exit_codes=exit_codes,
         vanishes=gantry_log.count('device disappears'), problems=problems)
 
@@ -541,7 +561,8 @@ def print_report(result: SoakResult, args: argparse.Namespace, machine: str) -> 
           f' dropped replies, {received // args.garble_every if args.garble_every else 0} '
           f'garbled, {result.vanishes} vanishes; driver reconnections '
           f'{result.driver.get("reconnections", "?")}, gantry/home calls {result.home_calls} '
-          f'({len(result.home_failures)} failed) | - |')
+          f'({len(result.home_failures)} failed, {result.home_unanswered} unanswered) '
+          f'| {"ok" if not result.home_unanswered else "FAILED"} |')
 
     reference = result.reference
     start, end = result.memory[0], result.memory[-1]
