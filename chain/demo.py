@@ -198,8 +198,9 @@ class DemoRun:
             self.lines_sent_at_start = monitor.latest_gantry_state.lines_sent
             self.start_recorder()
             # correlation_node and fuzzy_best_point_node create their endpoints only once their
-            # numba kernels are compiled (10-30 s on a fresh checkout). A scene played before
-            # every link of the chain exists is lost at the first missing link.
+            # numba kernels are compiled (cold-start times: the README's benchmark table). A
+            # scene played before every link of the chain exists is lost at the first missing
+            # link.
             try:
                 wait_for(lambda: not missing_links(node), 180.0,
                          'every link of the chain (kernels compiled)', spin, self.group)
