@@ -12,8 +12,9 @@
  * (the correlation's running sums) and float64 (the window statistics), so results do not
  * depend on how rows are split into bands. No fused multiply-add (-ffp-contract=off in
  * setup.py), so the vectorised and scalar loops round alike on every CPU; target_clones picks
- * an AVX2 body where the CPU has it. Scores are int32 fixed point (1.0 = SCORE_ONE): integer
- * maxima vectorise, and 2^-24 is finer than float32 resolves a score anyway.
+ * an AVX-512 (x86-64-v4) or AVX2 body where the CPU has one. Scores are int32 fixed point
+ * (1.0 = SCORE_ONE): integer maxima vectorise, and 2^-24 is finer than float32 resolves a score
+ * anyway.
  *
  * Threads: correlate() releases the GIL and runs the work on `threads` POSIX threads (the
  * calling one included) started for the call and joined before it returns: no pool spins
@@ -42,9 +43,10 @@
 #include <string.h>
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define CLONED_FOR_AVX2 __attribute__((target_clones("avx2", "default")))
+#define CLONED_FOR_SIMD \
+    __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
 #else
-#define CLONED_FOR_AVX2
+#define CLONED_FOR_SIMD
 #endif
 
 /* MatchStatus (window_matcher.py): why a pixel has, or has no, disparity. The one definition;
@@ -177,8 +179,10 @@ static void prepare_band(const matcher_call *call, const image_source *source, i
     const int64_t size = 2 * radius + 1;
     const double count = (double)(size * size);
     const int zero_mean = call->zero_mean;
-    double *restrict column_sum = memory->column_sum, *restrict column_square = memory->column_square;
-    double *restrict window_sum = memory->window_sum, *restrict window_square = memory->window_square;
+    double *restrict column_sum = memory->column_sum;
+    double *restrict column_square = memory->column_square;
+    double *restrict window_sum = memory->window_sum;
+    double *restrict window_square = memory->window_square;
     float *restrict row = memory->row, *restrict other_row = memory->other_row;
 
     const int64_t padded_first = y_first == 0 ? 0 : y_first + radius;
@@ -453,7 +457,7 @@ static inline void decide_pixel(const matcher_call *call, int64_t x, int64_t y, 
 /* Match rows y_first..y_stop-1 of the region (columns x_begin..x_end-1, inside r..W-1-r) and
  * decide columns out_x_begin..out_x_end-1 of the rows with y % row_step == 0; the other rows
  * only advance the running column sums. */
-CLONED_FOR_AVX2 static void correlate_band(const matcher_call *call, int64_t y_first,
+CLONED_FOR_SIMD static void correlate_band(const matcher_call *call, int64_t y_first,
                                            int64_t y_stop, char *memory)
 {
     const geometry g = {call->width, call->radius, call->min_disparity, call->disparity_range};
