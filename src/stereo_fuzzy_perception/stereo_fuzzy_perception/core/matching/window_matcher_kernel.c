@@ -1,7 +1,8 @@
 /*
  * The window-correlation matcher's kernel, whole: image preparation, the correlation of row
  * bands on worker threads and the per-pixel decisions, behind one Python function, correlate()
- * (window_matcher.py explains the method and calls it; nothing else does).
+ * (window_matcher.py explains the method and calls it; nothing else does). triangulate() turns
+ * its disparities into the rows a PointCloud2 carries (triangulation.py calls it).
  *
  * One technology, one call: the arguments are parsed here by keyword, so a caller that passes
  * a wrong name, type or buffer gets a TypeError or ValueError instead of a crash, and the
@@ -116,7 +117,7 @@ static size_t per_thread_bytes(int64_t width, int64_t radius, int64_t range)
 {
     return 2 * aligned((size_t)(width * range) * 4) + aligned((size_t)range * 4)
         + 2 * aligned((size_t)width * 4) + 2 * aligned((size_t)(width + 2 * radius + 1) * 8)
-        + 2 * aligned((size_t)width * 8) + 2 * aligned((size_t)width * 4);
+        + 2 * aligned((size_t)width * 8) + 2 * aligned((size_t)width * 4) + aligned((size_t)width);
 }
 
 static char *take(char **cursor, size_t bytes)
@@ -161,16 +162,41 @@ static void load_row(const image_source *source, int64_t width, int64_t row, flo
 typedef struct {
     double *column_sum, *column_square, *window_sum, *window_square;
     float *row, *other_row;
+    uint8_t *texture_row;
 } prepare_memory;
+
+/* Per column of one row, from its window sums: scale = 1 / sqrt(energy) (0 where textureless),
+ * term = offset (window sum * scale) or mean for Eq. 8, 0 for Eq. 7, and the texture flag.
+ * Inlined with constant flags, so that each variant is a loop without branches. */
+static inline __attribute__((always_inline)) void window_terms(
+    int zero_mean, int offset_term, int64_t width, double count, double textured_energy,
+    const double *restrict window_sum, const double *restrict window_square,
+    float *restrict scale_row, float *restrict term_row, uint8_t *restrict texture_row)
+{
+    for (int64_t x = 0; x < width; ++x) {
+        const double window = window_sum[x], squares = window_square[x];
+        double deviation = squares - window * window / count;
+        deviation = deviation > 0.0 ? deviation : 0.0;
+        const int textured = deviation >= textured_energy;
+        const double energy = zero_mean ? deviation : squares;
+        const int usable = textured & (energy > 0.0);
+        const double inverse = 1.0 / sqrt(usable ? energy : 1.0);
+        const double scale = usable ? inverse : 0.0;
+        scale_row[x] = (float)scale;
+        term_row[x] = !zero_mean ? 0.0f
+            : offset_term ? (float)(window * scale) : (float)(window / count);
+        texture_row[x] = (uint8_t)textured;
+    }
+}
 
 /* Write one band of an image's float32 intensities (rows padded by reflection) and window
  * terms. Window sums come from running float64 column sums, windows reflected at the image
  * edges; per pixel: offset = count * mean * scale, mean = window mean (Eq. 8 only), scale =
  * 1 / sqrt(energy) with energy the sum of squared deviations (Eq. 8) or of squares (Eq. 7), 0
  * where the window is textureless; texture = the window's standard deviation reaches the
- * threshold. Columns are stored reversed when `reverse` (the right image). NULL outputs are
- * skipped. */
-static void prepare_band(const matcher_call *call, const image_source *source, int reverse,
+ * threshold. Columns are stored reversed when `reverse` (the right image). One of offset_out
+ * and mean_out is NULL; texture_out may be. */
+CLONED_FOR_SIMD static void prepare_band(const matcher_call *call, const image_source *source, int reverse,
                          int64_t y_first, int64_t y_stop, float *padded_out, float *offset_out,
                          float *mean_out, float *scale_out, uint8_t *texture_out,
                          const prepare_memory *memory)
@@ -226,23 +252,29 @@ static void prepare_band(const matcher_call *call, const image_source *source, i
             total += column_sum[x + size] - column_sum[x];
             square_total += column_square[x + size] - column_square[x];
         }
-        /* The terms in a loop of their own, without branches, so that it vectorises: the square
-         * root and the division dominate this part. */
+        /* The terms in loops of their own, forward and without branches, so that they
+         * vectorise (the square root and the divisions dominate this part); then stored. */
+        float *restrict scale_row = row, *restrict term_row = other_row;
+        const int offset_term = offset_out != NULL; /* else the mean */
+        if (!zero_mean)
+            window_terms(0, 0, width, count, call->textured_energy, window_sum, window_square,
+                         scale_row, term_row, memory->texture_row);
+        else if (offset_term)
+            window_terms(1, 1, width, count, call->textured_energy, window_sum, window_square,
+                         scale_row, term_row, memory->texture_row);
+        else
+            window_terms(1, 0, width, count, call->textured_energy, window_sum, window_square,
+                         scale_row, term_row, memory->texture_row);
+        float *restrict term_out = offset_term ? offset_out : mean_out;
         const int64_t at = y * width;
-        const double textured_energy = call->textured_energy;
-        for (int64_t x = 0; x < width; ++x) {
-            const double window = window_sum[x], squares = window_square[x];
-            double deviation = squares - window * window / count;
-            deviation = deviation > 0.0 ? deviation : 0.0;
-            const int textured = deviation >= textured_energy;
-            const double energy = zero_mean ? deviation : squares;
-            const double scale = textured && energy > 0.0 ? 1.0 / sqrt(energy) : 0.0;
-            const int64_t column = at + (reverse ? width - 1 - x : x);
-            scale_out[column] = (float)scale;
-            if (offset_out) offset_out[column] = zero_mean ? (float)(window * scale) : 0.0f;
-            if (mean_out) mean_out[column] = zero_mean ? (float)(window / count) : 0.0f;
-            if (texture_out) texture_out[column] = (uint8_t)textured;
+        if (reverse) {
+            for (int64_t x = 0; x < width; ++x) scale_out[at + width - 1 - x] = scale_row[x];
+            for (int64_t x = 0; x < width; ++x) term_out[at + width - 1 - x] = term_row[x];
+        } else {
+            memcpy(scale_out + at, scale_row, (size_t)width * sizeof(float));
+            memcpy(term_out + at, term_row, (size_t)width * sizeof(float));
         }
+        if (texture_out) memcpy(texture_out + at, memory->texture_row, (size_t)width);
         if (y + 1 < y_stop) {
             load_row(source, width, reflect(y + radius + 1, height), row);
             load_row(source, width, reflect(y - radius, height), other_row);
@@ -535,6 +567,7 @@ static void *work(void *argument_pointer)
     prepare.window_square = (double *)take(&cursor, (size_t)call->width * 8);
     prepare.row = (float *)take(&cursor, (size_t)call->width * 4);
     prepare.other_row = (float *)take(&cursor, (size_t)call->width * 4);
+    prepare.texture_row = (uint8_t *)take(&cursor, (size_t)call->width);
 
     /* 1. Both images, in bands: left ones (with the outputs of their rows) then right ones. */
     const int64_t prepare_items = 2 * call->prepare_bands;
@@ -764,9 +797,78 @@ static PyObject *correlate(PyObject *self, PyObject *args, PyObject *kwargs)
     Py_RETURN_NONE;
 }
 
+/* Triangulate the valid pixels of every stride-th row and column (triangulation.py explains
+ * the geometry) into `points`, one (x, y, z, u_left, v_left, u_right, score) float32 row per
+ * point, in row-major pixel order; return the number of points. */
+static PyObject *triangulate(PyObject *self, PyObject *args, PyObject *kwargs)
+{
+    static char *keywords[] = {"disparity", "score", "points", "stride", "fx", "fy", "cx", "cy",
+                               "tx", "ty", "numerator", "principal_shift", "rotation", NULL};
+    PyObject *objects[3];
+    Py_ssize_t stride;
+    double fx, fy, cx, cy, tx, ty, numerator, principal_shift, r[9];
+    (void)self;
+    if (!PyArg_ParseTupleAndKeywords(
+            args, kwargs, "OOO$ndddddddd(ddddddddd)", keywords, &objects[0], &objects[1],
+            &objects[2], &stride, &fx, &fy, &cx, &cy, &tx, &ty, &numerator, &principal_shift,
+            &r[0], &r[1], &r[2], &r[3], &r[4], &r[5], &r[6], &r[7], &r[8]))
+        return NULL;
+    static const char *names[] = {"disparity", "score", "points"};
+    buffer_hold holds[3];
+    memset(holds, 0, sizeof holds);
+    for (int index = 0; index < 3; ++index) {
+        if (hold(objects[index], &holds[index], names[index], index == 2, 2, "f") != 0) {
+            release_all(holds, 3);
+            return NULL;
+        }
+    }
+    const Py_ssize_t height = holds[0].view.shape[0], width = holds[0].view.shape[1];
+    const char *problem = NULL;
+    if (stride < 1) problem = "stride must be >= 1";
+    else if (holds[1].view.shape[0] != height || holds[1].view.shape[1] != width)
+        problem = "disparity and score must have one shape";
+    else if (holds[2].view.shape[1] != 7
+             || holds[2].view.shape[0] < ((height + stride - 1) / stride)
+                                             * ((width + stride - 1) / stride))
+        problem = "points must be (n, 7) with a row for every sampled pixel";
+    if (problem) {
+        PyErr_SetString(PyExc_ValueError, problem);
+        release_all(holds, 3);
+        return NULL;
+    }
+    const float *disparity = holds[0].view.buf, *score = holds[1].view.buf;
+    float *out = holds[2].view.buf;
+    Py_ssize_t count = 0;
+    Py_BEGIN_ALLOW_THREADS
+    for (Py_ssize_t v = 0; v < height; v += stride) {
+        for (Py_ssize_t u = 0; u < width; u += stride) {
+            const double d = disparity[v * width + u];
+            const double effective = d - principal_shift;
+            if (!(effective > 0.0)) continue; /* NaN (no match) or behind the cameras */
+            const double z = numerator / effective;
+            const double x = (((double)u - cx) * z - tx) / fx;
+            const double y = (((double)v - cy) * z - ty) / fy;
+            float *point = out + 7 * count++;
+            /* optical <- rectified is R^T: for a row vector, p_optical = p_rectified R. */
+            point[0] = (float)(x * r[0] + y * r[3] + z * r[6]);
+            point[1] = (float)(x * r[1] + y * r[4] + z * r[7]);
+            point[2] = (float)(x * r[2] + y * r[5] + z * r[8]);
+            point[3] = (float)u;
+            point[4] = (float)v;
+            point[5] = (float)((double)u - d);
+            point[6] = score[v * width + u];
+        }
+    }
+    Py_END_ALLOW_THREADS
+    release_all(holds, 3);
+    return PyLong_FromSsize_t(count);
+}
+
 static PyMethodDef kernel_methods[] = {
     {"correlate", (PyCFunction)(void (*)(void))correlate, METH_VARARGS | METH_KEYWORDS,
      "Match a rectified pair into disparity, score and status (window_matcher.match)."},
+    {"triangulate", (PyCFunction)(void (*)(void))triangulate, METH_VARARGS | METH_KEYWORDS,
+     "Triangulate valid disparities into (x, y, z, u_left, v_left, u_right, score) rows."},
     {"workspace_bytes", (PyCFunction)(void (*)(void))workspace_bytes,
      METH_VARARGS | METH_KEYWORDS, "Bytes of the workspace correlate() needs."},
     {NULL, NULL, 0, NULL}};
