@@ -1,7 +1,7 @@
 """The correlation stage in one call: rectify, match (Eqs. 7-8), triangulate (Eq. 1).
 
 correlation_node calls `StereoMatchingPipeline.process` once per pair and the benchmark times
-the same call. ROS-free: numpy, OpenCV and numba only.
+the same call. ROS-free: numpy, OpenCV and the matcher's C kernel only.
 """
 
 from __future__ import annotations
