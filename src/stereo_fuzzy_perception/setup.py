@@ -13,7 +13,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
     ],
-    package_data={package_name: ['data/*.yaml', 'data/*.npz']},
+    package_data={package_name: ['data/*.yaml', 'data/*.npz', 'core/matching/*.pyi']},
     # The matcher's kernel, the whole matcher behind one Python function (see its header
     # comment). -ffp-contract=off: no fused multiply-add, so the vectorised and the scalar loops
     # round alike and results do not depend on the CPU. -fno-math-errno, -fno-trapping-math:
