@@ -117,7 +117,7 @@ static size_t per_thread_bytes(int64_t width, int64_t radius, int64_t range)
 {
     return 2 * aligned((size_t)(width * range) * 4) + aligned((size_t)range * 4)
         + 2 * aligned((size_t)width * 4) + 2 * aligned((size_t)(width + 2 * radius + 1) * 8)
-        + 2 * aligned((size_t)width * 8) + 2 * aligned((size_t)width * 4) + aligned((size_t)width);
+        + 2 * aligned((size_t)width * 8) + 2 * aligned((size_t)width * 4);
 }
 
 static char *take(char **cursor, size_t bytes)
@@ -137,7 +137,7 @@ static inline int64_t reflect(int64_t index, int64_t size)
     return index;
 }
 
-static void load_row(const image_source *source, int64_t width, int64_t row, float *out)
+static inline __attribute__((always_inline)) void load_row(const image_source *source, int64_t width, int64_t row, float *out)
 {
     const float gain = source->gain, shift = source->shift;
     switch (source->kind) {
@@ -162,30 +162,29 @@ static void load_row(const image_source *source, int64_t width, int64_t row, flo
 typedef struct {
     double *column_sum, *column_square, *window_sum, *window_square;
     float *row, *other_row;
-    uint8_t *texture_row;
 } prepare_memory;
 
-/* Per column of one row, from its window sums: scale = 1 / sqrt(energy) (0 where textureless),
- * term = offset (window sum * scale) or mean for Eq. 8, 0 for Eq. 7, and the texture flag.
- * Inlined with constant flags, so that each variant is a loop without branches. */
+/* Per column of one row, from its window sums: scale = 1 / sqrt(energy), 0 where textureless,
+ * and term = offset (window sum * scale) or mean for Eq. 8, 0 for Eq. 7. Inlined with constant
+ * flags, so that each variant is a loop without branches. A window is textured exactly where
+ * its scale is positive: the texture threshold's energy is positive (FLAT_STD), and so is the
+ * energy of a textured window. */
 static inline __attribute__((always_inline)) void window_terms(
     int zero_mean, int offset_term, int64_t width, double count, double textured_energy,
     const double *restrict window_sum, const double *restrict window_square,
-    float *restrict scale_row, float *restrict term_row, uint8_t *restrict texture_row)
+    float *restrict scale_row, float *restrict term_row)
 {
     for (int64_t x = 0; x < width; ++x) {
         const double window = window_sum[x], squares = window_square[x];
         double deviation = squares - window * window / count;
         deviation = deviation > 0.0 ? deviation : 0.0;
-        const int textured = deviation >= textured_energy;
         const double energy = zero_mean ? deviation : squares;
-        const int usable = textured & (energy > 0.0);
+        const int usable = (deviation >= textured_energy) & (energy > 0.0);
         const double inverse = 1.0 / sqrt(usable ? energy : 1.0);
         const double scale = usable ? inverse : 0.0;
         scale_row[x] = (float)scale;
         term_row[x] = !zero_mean ? 0.0f
             : offset_term ? (float)(window * scale) : (float)(window / count);
-        texture_row[x] = (uint8_t)textured;
     }
 }
 
@@ -258,13 +257,13 @@ CLONED_FOR_SIMD static void prepare_band(const matcher_call *call, const image_s
         const int offset_term = offset_out != NULL; /* else the mean */
         if (!zero_mean)
             window_terms(0, 0, width, count, call->textured_energy, window_sum, window_square,
-                         scale_row, term_row, memory->texture_row);
+                         scale_row, term_row);
         else if (offset_term)
             window_terms(1, 1, width, count, call->textured_energy, window_sum, window_square,
-                         scale_row, term_row, memory->texture_row);
+                         scale_row, term_row);
         else
             window_terms(1, 0, width, count, call->textured_energy, window_sum, window_square,
-                         scale_row, term_row, memory->texture_row);
+                         scale_row, term_row);
         float *restrict term_out = offset_term ? offset_out : mean_out;
         const int64_t at = y * width;
         if (reverse) {
@@ -274,7 +273,9 @@ CLONED_FOR_SIMD static void prepare_band(const matcher_call *call, const image_s
             memcpy(scale_out + at, scale_row, (size_t)width * sizeof(float));
             memcpy(term_out + at, term_row, (size_t)width * sizeof(float));
         }
-        if (texture_out) memcpy(texture_out + at, memory->texture_row, (size_t)width);
+        if (texture_out)
+            for (int64_t x = 0; x < width; ++x)
+                texture_out[at + (reverse ? width - 1 - x : x)] = scale_row[x] > 0.0f;
         if (y + 1 < y_stop) {
             load_row(source, width, reflect(y + radius + 1, height), row);
             load_row(source, width, reflect(y - radius, height), other_row);
@@ -567,7 +568,6 @@ static void *work(void *argument_pointer)
     prepare.window_square = (double *)take(&cursor, (size_t)call->width * 8);
     prepare.row = (float *)take(&cursor, (size_t)call->width * 4);
     prepare.other_row = (float *)take(&cursor, (size_t)call->width * 4);
-    prepare.texture_row = (uint8_t *)take(&cursor, (size_t)call->width);
 
     /* 1. Both images, in bands: left ones (with the outputs of their rows) then right ones. */
     const int64_t prepare_items = 2 * call->prepare_bands;
