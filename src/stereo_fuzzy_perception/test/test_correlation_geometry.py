@@ -1,6 +1,7 @@
 """Rectification (undoes the chapter's Eqs. 2-6) and triangulation (Eq. 1), correlation stage."""
 
 import math
+import weakref
 
 import cv2
 import numpy as np
@@ -258,3 +259,19 @@ def test_the_point_cloud_holds_the_triangulated_points_whatever_their_layout():
     back = cloud_to_matched_points(cloud)
     np.testing.assert_array_equal(back.xyz, points.xyz)
     np.testing.assert_array_equal(back.u_right, points.u_right)
+
+
+def test_kept_points_are_never_overwritten_and_dropped_ones_are_recycled():
+    calibration = rectified_pair_calibration(500.0, 160.0, 160.0, 0.1, np.eye(3))
+    rng = np.random.default_rng(23)
+    first, second = (rng.uniform(5.0, 40.0, (HEIGHT, WIDTH)).astype(np.float32)
+                     for _ in range(2))
+    kept = triangulate(first, np.ones_like(first), calibration)
+    kept_xyz = kept.xyz.copy()
+    other = triangulate(second, np.ones_like(second), calibration)
+    np.testing.assert_array_equal(kept.xyz, kept_xyz)
+    block = weakref.ref(other.xyz.base)
+    del other
+    again = triangulate(second, np.ones_like(second), calibration)
+    assert again.xyz.base is block()  # nothing held the block: it was reused
+    np.testing.assert_array_equal(kept.xyz, kept_xyz)

@@ -74,11 +74,12 @@ _blocks = threading.local()
 
 def _point_block(capacity: int) -> np.ndarray:
     """Return a (capacity, 7) float32 block: this thread's last one when nothing refers to it."""
-    block: np.ndarray | None = getattr(_blocks, 'block', None)
-    # 2 = the attribute's reference and getrefcount's argument: no points view it any more
-    if block is None or block.shape[0] < capacity or sys.getrefcount(block) > 2:
-        block = np.empty((capacity, len(POINT_COLUMNS)), np.float32)
-        _blocks.block = block
+    previous: np.ndarray | None = getattr(_blocks, 'block', None)
+    # 3 = the attribute, this name and getrefcount's argument: no points view it any more
+    if previous is not None and previous.shape[0] >= capacity and sys.getrefcount(previous) <= 3:
+        return previous
+    block = np.empty((capacity, len(POINT_COLUMNS)), np.float32)
+    _blocks.block = block
     return block
 
 
