@@ -12,7 +12,7 @@
    clipped): Eq. 8 against Eq. 7 (plain) and StereoBM.
 3. Speed: ms per pair, 9x9 window, at 320x240 with 32 disparities, 640x480 with 64 and
    1280x960 with 128, against StereoBM (block 9) and StereoSGBM (block 5) on the same images in
-   the same process (median of --repeats runs in 3 rounds, as a ratio to StereoBM), with every
+   the same process (median of --repeats runs in rounds of 3, as a ratio to StereoBM), with every
    thread; and the whole correlation stage as correlation_node runs it, a StereoPair message in
    and StereoMatches out (decode, rectify with a toed-in rig's maps, match, triangulate, pack;
    the message parts only when the ROS workspace is sourced), at point_stride 1 and 3, with
@@ -255,18 +255,19 @@ def _stage_parts(left: np.ndarray, right: np.ndarray, calibration: StereoCalibra
 
 def timed_rounds(runners: dict[str, Callable[[], object]],
                  repeats: int) -> dict[str, list[float]]:
-    """Return each runner's timed runs [ms]: 3 rounds, each one untimed run then repeats / 3.
+    """Return each runner's timed runs [ms]: rounds of one untimed run and three timed ones.
 
-    Rounds of consecutive runs per method: calling two methods' threads alternately makes each
-    wait for the other's (OpenCV's pool spins for a while after each call), which neither meets
-    in a node that runs one matcher.
+    Methods take turns round by round, so that the load of a shared machine, which changes from
+    one second to the next, falls on all of them alike; within a round the runs are consecutive,
+    so that a method does not wait for the threads the previous method left spinning (OpenCV's
+    pool), which it would not meet in a node that runs one matcher.
     """
     samples: dict[str, list[float]] = {name: [] for name in runners}
-    rounds = 3
-    for _ in range(rounds):
+    per_round = 3
+    for _ in range(max(1, (repeats + per_round - 1) // per_round)):
         for name, run in runners.items():
             run()
-            for _ in range(max(1, repeats // rounds)):
+            for _ in range(per_round):
                 start = time.perf_counter()
                 run()
                 samples[name].append(1e3 * (time.perf_counter() - start))
