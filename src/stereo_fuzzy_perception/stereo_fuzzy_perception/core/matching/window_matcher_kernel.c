@@ -106,10 +106,11 @@ typedef struct {
 
 static size_t aligned(size_t bytes) { return (bytes + ALIGNMENT - 1) / ALIGNMENT * ALIGNMENT; }
 
+/* Bytes the parts shared by the threads take, with room to align the buffer's start. */
 static size_t shared_bytes(int64_t height, int64_t width, int64_t radius)
 {
     const size_t image = (size_t)(height * width);
-    return 2 * aligned((size_t)((height + 2 * radius) * width) * sizeof(float))
+    return ALIGNMENT + 2 * aligned((size_t)((height + 2 * radius) * width) * sizeof(float))
         + 4 * aligned(image * sizeof(float)) + aligned(image);
 }
 
@@ -137,7 +138,8 @@ static inline int64_t reflect(int64_t index, int64_t size)
     return index;
 }
 
-static inline __attribute__((always_inline)) void load_row(const image_source *source, int64_t width, int64_t row, float *out)
+static inline __attribute__((always_inline)) void load_row(
+    const image_source *source, int64_t width, int64_t row, float *out)
 {
     const float gain = source->gain, shift = source->shift;
     switch (source->kind) {
@@ -195,10 +197,10 @@ static inline __attribute__((always_inline)) void window_terms(
  * where the window is textureless; texture = the window's standard deviation reaches the
  * threshold. Columns are stored reversed when `reverse` (the right image). One of offset_out
  * and mean_out is NULL; texture_out may be. */
-CLONED_FOR_SIMD static void prepare_band(const matcher_call *call, const image_source *source, int reverse,
-                         int64_t y_first, int64_t y_stop, float *padded_out, float *offset_out,
-                         float *mean_out, float *scale_out, uint8_t *texture_out,
-                         const prepare_memory *memory)
+CLONED_FOR_SIMD static void prepare_band(
+    const matcher_call *call, const image_source *source, int reverse, int64_t y_first,
+    int64_t y_stop, float *padded_out, float *offset_out, float *mean_out, float *scale_out,
+    uint8_t *texture_out, const prepare_memory *memory)
 {
     const int64_t height = call->height, width = call->width, radius = call->radius;
     const int64_t size = 2 * radius + 1;
@@ -652,7 +654,7 @@ static int hold(PyObject *object, buffer_hold *hold, const char *name, int writa
     return 0;
 }
 
-static int image_of(buffer_hold *hold, float shift, image_source *source)
+static void image_of(const buffer_hold *hold, float shift, image_source *source)
 {
     const char *format = hold->view.format;
     const char code = format[strlen(format) - 1];
@@ -661,7 +663,6 @@ static int image_of(buffer_hold *hold, float shift, image_source *source)
     source->gain = 1.0f;
     source->kind = code == 'B' ? PIXELS_UINT8 : code == 'H' ? PIXELS_UINT16 : PIXELS_FLOAT32;
     if (source->kind == PIXELS_UINT16) source->gain = (float)(255.0 / 65535.0);
-    return 0;
 }
 
 static PyObject *workspace_bytes(PyObject *self, PyObject *args, PyObject *kwargs)
@@ -769,7 +770,8 @@ static PyObject *correlate(PyObject *self, PyObject *args, PyObject *kwargs)
     call.out_x_end = roi_x + roi_width < width - radius ? roi_x + roi_width : width - radius;
     call.prepare_bands = 2 * threads < height ? 2 * threads : height;
     call.bands = bands < roi_height ? bands : roi_height;
-    char *cursor = holds[5].view.buf;
+    char *cursor = (char *)holds[5].view.buf;
+    cursor += (ALIGNMENT - (uintptr_t)cursor % ALIGNMENT) % ALIGNMENT;
     const size_t padded = (size_t)((height + 2 * radius) * width) * sizeof(float);
     const size_t plane = (size_t)(height * width) * sizeof(float);
     call.left_padded = (float *)take(&cursor, padded);
