@@ -41,8 +41,7 @@ whatever the window size. The disparity loop is innermost and contiguous (the ri
 stored with its columns reversed for that), and bands of rows run on POSIX threads with the GIL
 released. For 8-bit images the sums are of integers below 2^24 and therefore exact in float32.
 Working memory is kept between calls (_ScratchMemory), and so are the output arrays once the
-caller has dropped the previous result: allocating them per pair cost a quarter of the time in
-page faults.
+caller has dropped the previous result, so that a pair does not fault in fresh pages.
 
 ROI ("correlation area", Fig. 2 of the chapter): only pixels inside `roi` are matched, which
 divides the work by the share of the image it covers. Preprocessing (Fig. 8): `edges` correlates
@@ -373,8 +372,8 @@ class _ScratchMemory:
     """The matcher's working memory for one image size, disparity range and thread count.
 
     Kept between calls (one per Python thread, for the last shape matched), as StereoBM keeps
-    its buffers: a fresh page costs microseconds to fault in, and the megabytes a pair needs
-    took a quarter of the matching time when allocated per call.
+    its buffers: faulting in the megabytes a pair needs on every call costs a noticeable share
+    of the matching (the package README has the measurement).
     """
 
     def __init__(self, height: int, width: int, radius: int, disparity_range: int,
