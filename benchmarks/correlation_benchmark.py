@@ -16,8 +16,9 @@
    thread; and the whole correlation stage as correlation_node runs it, a StereoPair message in
    and StereoMatches out (decode, rectify with a toed-in rig's maps, match, triangulate, pack;
    the message parts only when the ROS workspace is sourced), at point_stride 1 and 3, with
-   its steps' times. Then 640x480 with one thread each, so that the work per pair shows apart
-   from how each method scales on the machine's cores.
+   its steps' times. Then each size with one thread each (OpenCV too), timed in CPU time of the
+   calling thread, so that the work per pair shows apart from how each method scales on the
+   machine's cores and from the time a loaded machine keeps a process waiting.
 
 Markdown tables go to stdout. Needs numpy and OpenCV, and the package built (scripts/setup.sh);
 imports the package from src/.
@@ -192,20 +193,18 @@ def speed_section(data_dir: Path, repeats: int) -> str:
     for width, height, disparities in SCALES:
         lines.extend(scale_table(data_dir, width, height, disparities, repeats, stage))
         lines.append('')
-    left, right = speed_images(data_dir)
-    config = MatcherConfig(window_size=9, disparity_range=DISPARITIES)
-    bm = cv2.StereoBM.create(numDisparities=DISPARITIES, blockSize=9)
-    # One thread each: the work per pair, apart from how each method scales on this machine's
-    # cores (which on a shared VM changes from one minute to the next; README has the figures).
+    # One thread each, timed in CPU time: the work per pair, apart from how each method scales
+    # on this machine's cores and from the time a loaded machine keeps it waiting.
     opencv_threads = cv2.getNumThreads()
     cv2.setNumThreads(1)
     try:
-        single = timed_rounds({OURS: lambda: match(left, right, config, threads=1),
-                               BM: lambda: bm.compute(left, right)}, repeats)
+        for width, height, disparities in SCALES:
+            lines.extend(cpu_time_table(data_dir, width, height, disparities, repeats, stage))
+            lines.append('')
     finally:
         cv2.setNumThreads(opencv_threads)
-    lines.extend(speed_table('640x480, 64 disparities, one thread each', single, BM))
-    lines.append('')
+    left, right = speed_images(data_dir)
+    config = MatcherConfig(window_size=9, disparity_range=DISPARITIES)
     lines.append(f'First call in this process (loads the kernel): {first_call * 1e3:.1f} ms. '
                  f'Share of valid pixels on the 640x480 pair: '
                  f'{100 * match(left, right, config).valid.mean():.1f} %.')
@@ -242,6 +241,26 @@ def scale_table(data_dir: Path, width: int, height: int, disparities: int, repea
     return table
 
 
+def cpu_time_table(data_dir: Path, width: int, height: int, disparities: int, repeats: int,
+                   stage: Callable) -> list[str]:
+    """Markdown rows: CPU time per pair with one thread each (OpenCV set to one thread)."""
+    left, right = speed_images(data_dir, width, height)
+    config = MatcherConfig(window_size=9, disparity_range=disparities)
+    bm = cv2.StereoBM.create(numDisparities=disparities, blockSize=9)
+    calibration = verged_calibration(width, height)
+    runners: dict[str, Callable[[], object]] = {
+        OURS: lambda: match(left, right, config, threads=1),
+        BM: lambda: bm.compute(left, right),
+    }
+    for stride in (1, 3):
+        pipeline = StereoMatchingPipeline(config, point_stride=stride, threads=1)
+        runners[f'correlation stage, point_stride {stride}'] = (
+            lambda pipeline=pipeline: stage(left, right, calibration, pipeline))
+    samples = timed_rounds(runners, repeats, clock=time.thread_time)
+    return speed_table(f'{width}x{height}, {disparities} disparities, one thread each, CPU time',
+                       samples, BM)
+
+
 def _stage_parts(left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
                  config: MatcherConfig, repeats: int) -> str:
     """Median time of each step of StereoMatchingPipeline.process [ms], as it reports them."""
@@ -253,8 +272,8 @@ def _stage_parts(left: np.ndarray, right: np.ndarray, calibration: StereoCalibra
     return ', '.join(f'{name} {np.median(values):.2f} ms' for name, values in timings.items())
 
 
-def timed_rounds(runners: dict[str, Callable[[], object]],
-                 repeats: int) -> dict[str, list[float]]:
+def timed_rounds(runners: dict[str, Callable[[], object]], repeats: int,
+                 clock: Callable[[], float] = time.perf_counter) -> dict[str, list[float]]:
     """Return each runner's timed runs [ms]: rounds of one untimed run and three timed ones.
 
     Methods take turns round by round, so that the load of a shared machine, which changes from
@@ -268,9 +287,9 @@ def timed_rounds(runners: dict[str, Callable[[], object]],
         for name, run in runners.items():
             run()
             for _ in range(per_round):
-                start = time.perf_counter()
+                start = clock()
                 run()
-                samples[name].append(1e3 * (time.perf_counter() - start))
+                samples[name].append(1e3 * (clock() - start))
     return samples
 
 
