@@ -327,18 +327,22 @@ def _stage_function() -> Callable:
         return arrays_stage
 
     header = Header(frame_id='left_optical')
-    pairs: dict[int, object] = {}
+    # The message is made once per pair, as a subscription receives it; the cache holds the
+    # images themselves, so that a later pair can never be taken for an earlier one.
+    pairs: list[tuple[np.ndarray, np.ndarray, StereoCalibration, object]] = []
 
     def message_stage(left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
                       pipeline: StereoMatchingPipeline) -> object:
-        key = id(left)
-        if key not in pairs:  # the message is made once per image, as a subscription gets it
-            pairs[key] = StereoPair(
+        cached = [entry[3] for entry in pairs
+                  if entry[0] is left and entry[1] is right and entry[2] is calibration]
+        if not cached:
+            cached.append(StereoPair(
                 header=header, left_image=array_to_image(left, 'mono8', header),
                 right_image=array_to_image(right, 'mono8', header),
                 left_info=calibration_to_camera_info(calibration.left, header),
-                right_info=calibration_to_camera_info(calibration.right, header))
-        raw_left, raw_right, raw_calibration = stereo_pair_to_domain(pairs[key])
+                right_info=calibration_to_camera_info(calibration.right, header)))
+            pairs.append((left, right, calibration, cached[0]))
+        raw_left, raw_right, raw_calibration = stereo_pair_to_domain(cached[0])
         result = pipeline.process(raw_left, raw_right, raw_calibration)
         return stereo_matches_message(header, result.rectified, result.points,
                                       pipeline.config)
