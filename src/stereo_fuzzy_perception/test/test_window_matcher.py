@@ -414,3 +414,22 @@ def test_the_kernel_refuses_arrays_that_do_not_fit_its_call():
     with pytest.raises(TypeError, match='threads'):
         del settings_['threads']
         _kernel.correlate(image, image, *outputs, workspace, **settings_)
+
+
+def test_python_threads_matching_at_once_get_the_results_of_matching_alone():
+    # the kernel releases the GIL; each Python thread has its own working memory
+    from concurrent.futures import ThreadPoolExecutor
+
+    pairs = [shifted_pair(texture(50, 90, seed=30 + index), 4.0 + index) for index in range(4)]
+    config = MatcherConfig(window_size=7, disparity_range=16)
+    alone = [match(left, right, config).disparity.copy() for left, right in pairs]
+
+    def match_repeatedly(index: int) -> list[np.ndarray]:
+        left, right = pairs[index]
+        return [match(left, right, config).disparity.copy() for _ in range(5)]
+
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        results = list(pool.map(match_repeatedly, range(4)))
+    for index, repeats in enumerate(results):
+        for disparity in repeats:
+            np.testing.assert_array_equal(disparity, alone[index])
