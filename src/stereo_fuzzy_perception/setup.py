@@ -16,12 +16,17 @@ setup(
         ('share/' + package_name + '/launch',
          glob('launch/*.launch.py') + glob('launch/*.yaml')),
     ],
-    package_data={package_name: ['data/*.yaml', 'data/*.npz']},
-    # The matcher's C kernel (see its header comment). -ffp-contract=off: no fused multiply-add,
-    # so the vectorised and the scalar loops round alike and results do not depend on the CPU.
+    package_data={package_name: ['data/*.yaml', 'data/*.npz', 'core/matching/*.pyi']},
+    # The matcher's kernel, the whole matcher behind one Python function (see its header
+    # comment). -ffp-contract=off: no fused multiply-add, so the vectorised and the scalar loops
+    # round alike and results do not depend on the CPU. -fno-math-errno, -fno-trapping-math:
+    # sqrt and branch-free selects vectorise (neither changes a result: errno and FP exception
+    # flags are never read). -pthread: its worker threads.
     ext_modules=[Extension(package_name + '.core.matching._window_matcher_kernel',
                            sources=[package_name + '/core/matching/window_matcher_kernel.c'],
-                           extra_compile_args=['-O3', '-ffp-contract=off'])],
+                           extra_compile_args=['-O3', '-ffp-contract=off', '-fno-math-errno',
+                                               '-fno-trapping-math', '-pthread'],
+                           extra_link_args=['-pthread'])],
     install_requires=['setuptools'],
     zip_safe=False,
     maintainer='stereo-fuzzy engineering',

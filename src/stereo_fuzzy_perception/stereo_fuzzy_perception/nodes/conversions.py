@@ -8,6 +8,8 @@ Everything else in the package works on domain types.
 
 from __future__ import annotations
 
+import array as array_module
+import sys
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -142,12 +144,19 @@ _FLOAT32_POINT = np.dtype([(name, '<f4') for name in MATCH_FIELDS])
 
 
 def matched_points_to_cloud(points: MatchedPoints, header: Header) -> PointCloud2:
-    """Pack matched points into an unordered PointCloud2 with float32 fields MATCH_FIELDS."""
-    records = np.empty(len(points), dtype=_FLOAT32_POINT)
-    records['x'], records['y'], records['z'] = points.xyz[:, 0], points.xyz[:, 1], points.xyz[:, 2]
-    records['u_left'], records['v_left'] = points.u_left, points.v_left
-    records['u_right'], records['score'] = points.u_right, points.score
-    cloud = PointCloud2()
+    """Pack matched points into an unordered PointCloud2 with float32 fields MATCH_FIELDS.
+
+    Points from triangulation.triangulate are already the cloud's rows: their bytes are copied
+    once into the message. Other points are interleaved first, column by column.
+    """
+    rows = _point_rows(points)
+    if rows is None:
+        rows = np.empty(len(points), dtype=_FLOAT32_POINT)
+        rows['x'], rows['y'], rows['z'] = points.xyz[:, 0], points.xyz[:, 1], points.xyz[:, 2]
+        rows['u_left'], rows['v_left'] = points.u_left, points.v_left
+        rows['u_right'], rows['score'] = points.u_right, points.score
+    # check_fields: the data setter then keeps the array.array it is given instead of copying it
+    cloud = PointCloud2(check_fields=True)
     cloud.header = header
     cloud.height, cloud.width = 1, len(points)
     cloud.fields = [
@@ -158,8 +167,36 @@ def matched_points_to_cloud(points: MatchedPoints, header: Header) -> PointCloud
     cloud.point_step = _FLOAT32_POINT.itemsize
     cloud.row_step = cloud.point_step * len(points)
     cloud.is_dense = True
-    cloud.data = records.tobytes()
+    cloud.data = _byte_array(rows)
     return cloud
+
+
+def _point_rows(points: MatchedPoints) -> np.ndarray | None:
+    """Return the (N, 7) float32 rows the points' columns are views of, in MATCH_FIELDS order
+    (little-endian), or None when they are not laid out so."""
+    block = points.xyz.base
+    count = len(points)
+    if (sys.byteorder != 'little' or not isinstance(block, np.ndarray)
+            or block.dtype != np.float32 or block.ndim != 2
+            or block.shape[1] != len(MATCH_FIELDS) or not block.flags.c_contiguous
+            or block.shape[0] < count or points.xyz.shape != (count, 3)):
+        return None
+    start = block.ctypes.data
+    columns = (points.xyz, points.u_left, points.v_left, points.u_right, points.score)
+    for column, offset in zip(columns, (0, 12, 16, 20, 24), strict=True):
+        if (column.base is not block or column.dtype != np.float32
+                or column.strides[0] != block.strides[0] or column.shape[0] != count
+                or column.ctypes.data != start + offset):
+            return None
+    rows: np.ndarray = block[:count]
+    return rows
+
+
+def _byte_array(array: np.ndarray) -> array_module.array:
+    """Return a C-contiguous array's bytes as the array.array('B') a uint8[] field holds."""
+    data = array_module.array('B')
+    data.frombytes(np.ascontiguousarray(array).reshape(-1).view(np.uint8))
+    return data
 
 
 _POINT_FIELD_TYPES = {
@@ -303,13 +340,14 @@ def disparity_image_message(disparity_map: DisparityMap, rectified: StereoCalibr
     shift = float(rectified.left.P[0, 2] - rectified.right.P[0, 2])
     config = disparity_map.config
     low = float(config.min_disparity) - shift
-    image = np.where(np.isfinite(disparity_map.disparity), disparity_map.disparity - shift,
-                     low - 1.0).astype(np.float32)
+    image = disparity_map.disparity - np.float32(shift)
+    image[~np.isfinite(image)] = low - 1.0
     msg = DisparityImage()
     msg.header = header
     msg.image = Image(header=header, height=image.shape[0], width=image.shape[1],
-                      encoding='32FC1', is_bigendian=0, step=4 * image.shape[1],
-                      data=image.tobytes())
+                      encoding='32FC1', is_bigendian=int(sys.byteorder == 'big'),
+                      step=4 * image.shape[1], check_fields=True)
+    msg.image.data = _byte_array(image)
     msg.f = float(rectified.left.P[0, 0])
     msg.t = float(rectified.baseline_m)
     x, y, width, height = disparity_map.roi
