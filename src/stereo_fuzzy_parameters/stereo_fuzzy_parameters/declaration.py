@@ -176,8 +176,12 @@ def declare_settings(
         if not ours:
             return
         values.update({parameter.name: parameter.value for parameter in ours})
-        if apply is not None:
+        if apply is None:
+            return
+        try:
             apply(settings_from_values(settings_type, values))
+        except Exception as error:  # validated already; if applying still fails, say so, go on
+            node.get_logger().error(f'new parameter values not applied: {error!r}')
 
     node.add_on_set_parameters_callback(on_set)
     node.add_post_set_parameters_callback(after_set)

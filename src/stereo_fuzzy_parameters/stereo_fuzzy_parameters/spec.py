@@ -12,6 +12,7 @@ ROS-free, so the README tables and tests read the same specs the nodes declare.
 
 from __future__ import annotations
 
+import array
 import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -74,7 +75,7 @@ class ParameterSpec:
         """
         if self.choices and value not in self.choices:
             return f'{self.name}={value!r} is not one of {", ".join(self.choices)}'
-        if isinstance(value, (list, tuple)):
+        if isinstance(value, (list, tuple, array.array)):
             if self.size is not None and len(value) != self.size:
                 return (f'{self.name}={list(value)!r} has {len(value)} values; it needs '
                         f'{self.size}')
@@ -194,7 +195,9 @@ def settings_from_values(settings_type: type[T], values: Mapping[str, object]) -
             reason = dataclasses.replace(entry, name=name).check(value)
             if reason:
                 raise SettingsError(reason)
-            arguments[field_name] = tuple(value) if isinstance(value, list) else value
+            if isinstance(value, (list, tuple, array.array)):
+                value = tuple(value)
+            arguments[field_name] = value
         settings = current(**arguments)
         problem = getattr(settings, 'problem', None)
         reason = problem() if problem is not None else None
