@@ -19,14 +19,15 @@ class WorldSettings:
     """The world frame and the workspace box in it."""
 
     world_frame: str = parameter(
-        'world', 'Frame of the workspace and of every world point (best_point, gantry '
-        'targets)', read_only=True)
+        'world', 'Frame of the workspace and of every world point: best_point is published in '
+        'it, gantry targets are accepted in it only', read_only=True)
     workspace_min_m: Vector3 = parameter(
         (0.0, 0.0, 0.0), 'Lower corner of the workspace box in world_frame, x y z [m]',
         -10.0, 10.0, read_only=True)
     workspace_max_m: Vector3 = parameter(
         (0.4, 0.3, 0.2), 'Upper corner of the workspace box in world_frame, x y z; above '
-        'workspace_min_m [m]', -10.0, 10.0, read_only=True)
+        "workspace_min_m, and for the driver inside the controller's travel ($130-$132) [m]",
+        -10.0, 10.0, read_only=True)
 
     def problem(self) -> str | None:
         """Return why the box is empty, or None."""
