@@ -11,13 +11,13 @@ TIMEOUT = 120.0  # [s] generous: the first start of a node imports numpy, OpenCV
 # (executable, --ros-args parameters, words the one line must hold: name, value, allowed)
 BAD_STARTS = [
     ('correlation_node', ['window_size:=10'], ['window_size', '10', 'odd']),
-    ('correlation_node', ['window_size:=40'], ['window_size', '40', 'maximum 31']),
+    ('correlation_node', ['window_size:=40'], ['window_size', '40', 'allowed [3, 31]']),
     ('correlation_node', ['window_size:=abc'], ['window_size', "'abc'", 'an integer']),
     ('correlation_node', ['method:=foo'], ['method', "'foo'", 'zncc, plain']),
     ('fuzzy_best_point_node', ['rule_base_file:=/nope.yaml'],
      ['rule_base_file', "'/nope.yaml'", 'rule base']),
     ('fuzzy_best_point_node', ['workspace_max_m:=[0.4,0.3]'],
-     ['workspace_max_m', '[0.4, 0.3]', 'needs 3']),
+     ['workspace_max_m', '[0.4, 0.3]', 'allowed: 3 values']),
     ('fuzzy_best_point_node', ['workspace_max_m:=[0.4,0.3,-0.1]'],
      ['workspace_max_m', '-0.1', 'must exceed workspace_min_m']),
     ('stereo_sync_node', ['slop_s:=1'], ['slop_s', '1', 'floating-point number']),

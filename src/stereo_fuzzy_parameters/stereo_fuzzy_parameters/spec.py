@@ -77,8 +77,8 @@ class ParameterSpec:
             return f'{self.name}={value!r} is not one of {", ".join(self.choices)}'
         if isinstance(value, (list, tuple, array.array)):
             if self.size is not None and len(value) != self.size:
-                return (f'{self.name}={list(value)!r} has {len(value)} values; it needs '
-                        f'{self.size}')
+                return (f'{self.name}={list(value)!r} has {len(value)} values; allowed: '
+                        f'{self.size} values')
             for element in value:
                 reason = self._range_problem(element)
                 if reason:
@@ -90,10 +90,11 @@ class ParameterSpec:
     def _range_problem(self, value: object) -> str | None:
         if not isinstance(value, (int, float)) or isinstance(value, bool):
             return None
+        allowed = f'allowed [{self.minimum}, {self.maximum}]'
         if self.minimum is not None and value < self.minimum:
-            return f'{value} is below the minimum {self.minimum}'
+            return f'{value} is below the minimum {self.minimum} ({allowed})'
         if self.maximum is not None and value > self.maximum:
-            return f'{value} is above the maximum {self.maximum}'
+            return f'{value} is above the maximum {self.maximum} ({allowed})'
         return None
 
 
