@@ -12,6 +12,7 @@ import threading
 import time
 import traceback
 from collections import Counter, deque
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
@@ -42,8 +43,8 @@ DROP_REASONS = ('superseded', 'calibration', 'size_mismatch', 'encoding', 'match
 class CorrelationNode(Node):
     """Match stereo pairs by window correlation and publish triangulated matches."""
 
-    def __init__(self, **kwargs: object) -> None:
-        super().__init__('correlation_node', **kwargs)  # type: ignore[arg-type]
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('correlation_node', **kwargs)
         self.settings = declare_settings(self, CorrelationSettings, apply=self._apply_settings)
         self.pipeline = StereoMatchingPipeline(self.settings.matcher_config(),
                                                self.settings.point_stride)
