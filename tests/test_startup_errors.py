@@ -3,6 +3,7 @@ what is allowed, and a non-zero exit code; no traceback. The executables start a
 would start them, with the bad value on the command line."""
 
 import pytest
+from ros_waiting import wait_until
 
 pytestmark = pytest.mark.ros
 
@@ -51,3 +52,17 @@ def test_bad_start_up_value_ends_the_node_with_one_fatal_line(
     assert '[FATAL]' in lines[0] and f'[{executable}]' in lines[0], lines[0]
     for word in words:
         assert word in lines[0], f'{word!r} missing from the start-up error: {lines[0]}'
+
+
+def test_a_parameter_the_node_does_not_have_is_named_with_the_closest_one(start_ros_process):
+    process = start_ros_process('stereo_fuzzy_perception', 'stereo_sync_node', '--ros-args',
+                                '-p', 'slop:=0.02')
+    wait_until(lambda: 'pairing' in process.output() or process.process.poll() is not None,
+               TIMEOUT, 'stereo_sync_node to start')
+    assert process.process.poll() is None, (
+        f'an unknown name must not stop the node:\n{process.output()}')
+    warnings = [line for line in process.output().splitlines() if '[WARN]' in line]
+    assert len(warnings) == 1, process.output()
+    assert 'slop is not a parameter of stereo_sync_node' in warnings[0], warnings[0]
+    assert 'did you mean slop_s?' in warnings[0], warnings[0]
+    assert process.interrupt() == 0, process.output()

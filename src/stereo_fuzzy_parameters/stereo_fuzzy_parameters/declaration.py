@@ -10,6 +10,7 @@ code 1, no traceback.
 
 from __future__ import annotations
 
+import difflib
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
@@ -88,11 +89,27 @@ def _type_words(default: ParameterValue) -> str:
     return 'a string'
 
 
+def _overrides(node: Node) -> dict[str, Any]:
+    """Return the parameters given on the command line or in a params file, by name."""
+    # rclpy keeps them only in this attribute; its exceptions do not carry the value.
+    return dict(getattr(node, '_parameter_overrides', {}))
+
+
 def _given_value(node: Node, name: str) -> Any:
     """Return the value given for `name` on the command line or in a params file."""
-    # rclpy keeps the overrides only in this attribute; its exceptions do not carry the value.
-    override = getattr(node, '_parameter_overrides', {}).get(name)
+    override = _overrides(node).get(name)
     return None if override is None else override.value
+
+
+def _warn_unknown(node: Node, names: Sequence[str]) -> None:
+    """Warn once per given parameter the node does not have (rclpy ignores it silently)."""
+    for name in sorted(_overrides(node)):
+        if node.has_parameter(name):
+            continue
+        close = difflib.get_close_matches(name, names, n=1)
+        hint = f'; did you mean {close[0]}?' if close else ''
+        node.get_logger().warning(f'parameter {name} is not a parameter of {node.get_name()} '
+                                  f'and is ignored{hint}')
 
 
 def _declare(node: Node, spec: ParameterSpec) -> None:
@@ -155,6 +172,7 @@ def declare_settings(
         settings = validated(values)
     except SettingsError as error:
         raise StartupError(str(error), node.get_name()) from None
+    _warn_unknown(node, [spec.name for spec in specs])
 
     def on_set(parameters: list[Parameter]) -> SetParametersResult:
         ours = [parameter for parameter in parameters if parameter.name in names]
