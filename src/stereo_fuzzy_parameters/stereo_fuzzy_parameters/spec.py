@@ -171,6 +171,10 @@ def parameter_specs(settings_type: type[Any]) -> list[ParameterSpec]:
                 collect(entry, name)
 
     collect(settings_type, '')
+    names = [spec.name for spec in specs]
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:
+        raise TypeError(f'{settings_type.__name__} declares {", ".join(repeated)} twice')
     return specs
 
 

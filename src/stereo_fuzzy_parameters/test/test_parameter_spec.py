@@ -99,3 +99,14 @@ def test_bad_values_are_refused_naming_parameter_value_and_what_is_allowed(chang
     with pytest.raises(SettingsError) as raised:
         settings_from_values(Example, values)
     assert words in str(raised.value)
+
+
+def test_a_name_declared_twice_through_flat_groups_is_refused():
+    @dataclass(frozen=True)
+    class Twice:
+        first: WorldSettings = parameter_group(WorldSettings, prefix='')
+        second: WorldSettings = parameter_group(WorldSettings, prefix='')
+
+    twice = 'declares workspace_max_m, workspace_min_m, world_frame twice'
+    with pytest.raises(TypeError, match=twice):
+        parameter_specs(Twice)
