@@ -138,7 +138,7 @@ def test_launch_file_starts_what_the_process_starter_starts(launch_file, given, 
 def test_chain_without_hardware_links_the_driver_to_the_simulator(monkeypatch):
     _, nodes = launched_nodes(LAUNCH_DIR / 'chain_without_hardware.launch.py', monkeypatch,
                               {'port': '/tmp/gantry_link'})
-    overrides = {node['name']: node['parameters'][-1] for node in nodes}
+    overrides = {node['name']: node['parameters'][-1] for node in nodes if node['parameters']}
     assert overrides['fake_gantry'] == {'link_path': '/tmp/gantry_link'}
     assert overrides['gantry_driver_node'] == {'port': '/tmp/gantry_link'}
 

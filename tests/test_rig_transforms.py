@@ -141,7 +141,9 @@ def test_pose_file_places_a_rig_the_rig_numbers_do_not_describe(harness, tmp_pat
 def test_bad_pose_file_ends_the_start_naming_the_file(harness, tmp_path):
     pose_file = tmp_path / 'rig_pose.yaml'
     pose_file.write_text('left_camera_pose: {frame_id: world}\n')
-    with pytest.raises(ValueError, match='rig_pose.yaml: section .left_camera_pose. has no '
+    from stereo_fuzzy_parameters.declaration import StartupError
+
+    with pytest.raises(StartupError, match='rig_pose.yaml: section .left_camera_pose. has no '
                                          'ros__parameters'):
         harness({'rig_pose_file': str(pose_file)})
 

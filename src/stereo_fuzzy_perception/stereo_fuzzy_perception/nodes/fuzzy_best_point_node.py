@@ -24,14 +24,11 @@ from collections import Counter
 from typing import Any
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_msgs.msg import Header
-from stereo_fuzzy_parameters.declaration import declare_parameters
-from stereo_fuzzy_parameters.spec import ParameterValue
+from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 from visualization_msgs.msg import MarkerArray
 
 from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
@@ -65,11 +62,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     decision_to_message,
     tf_message_to_transforms,
 )
-from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import (
-    PARAMETERS,
-    area_config,
-    stereo_rig,
-)
+from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import FuzzyBestPointSettings
 from tf2_msgs.msg import TFMessage
 
 MATCHES_TOPIC = 'stereo/matches'
@@ -86,32 +79,41 @@ ERROR_THROTTLE_S = 5.0
 HINT_THROTTLE_S = 60.0
 
 
-def build_chooser(values: dict[str, ParameterValue]) -> BestPointChooser:
-    """Return the chooser the parameter values describe.
+def build_chooser(settings: FuzzyBestPointSettings) -> BestPointChooser:
+    """Return the chooser the settings describe.
 
     Raises:
-        SelectorError: Unknown selector or an unusable rule base / weights file.
+        SelectorError: Unknown selector or an unusable rule base / weights file; the message
+            names the parameter and its value.
     """
-    return BestPointChooser.create(
-        str(values['selector']), area_config(values), stereo_rig(values),
-        rule_base_file=str(values['rule_base_file']), weights_file=str(values['network_file']))
+    try:
+        return BestPointChooser.create(
+            settings.selector, settings.area_config(), settings.rig.stereo_rig(),
+            rule_base_file=settings.rule_base_file, weights_file=settings.network_file)
+    except SelectorError as error:
+        # Name the file parameter the selector read, so the reason says what to change.
+        if settings.selector == 'neural_network' and settings.network_file:
+            raise SelectorError(f'network_file={settings.network_file!r}: {error}') from None
+        if settings.selector.startswith('fuzzy') and settings.rule_base_file:
+            raise SelectorError(f'rule_base_file={settings.rule_base_file!r}: {error}') from None
+        raise
 
 
-def build_pose_source(values: dict[str, ParameterValue]) -> CameraPoseSource:
+def build_pose_source(settings: FuzzyBestPointSettings) -> CameraPoseSource:
     """Return where the camera pose comes from (pose file or rig.* numbers).
 
     Raises:
         RigPoseError: An unusable pose file.
     """
-    return CameraPoseSource.from_settings(stereo_rig(values), str(values['rig_pose_file']),
-                                          str(values['world_frame']))
+    return CameraPoseSource.from_settings(settings.rig.stereo_rig(), settings.rig_pose_file,
+                                          settings.world.world_frame)
 
 
-def check_parameters(values: dict[str, ParameterValue]) -> str | None:
-    """Return why the parameter values cannot work together (e.g. a bad rule base), or None."""
+def chooser_problem(settings: FuzzyBestPointSettings) -> str | None:
+    """Return why the settings cannot work (e.g. a bad rule base or pose file), or None."""
     try:
-        build_chooser(values)
-        build_pose_source(values)
+        build_chooser(settings)
+        build_pose_source(settings)
     except (SelectorError, RigPoseError) as error:
         return str(error)
     return None
@@ -123,10 +125,10 @@ class FuzzyBestPointNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('fuzzy_best_point_node', **kwargs)
         self._lock = threading.Lock()
-        self.parameters = declare_parameters(self, PARAMETERS, validate=check_parameters,
-                                             apply=self._apply_parameters)
-        self._chooser = build_chooser(self.parameters)
-        self._pose_source = build_pose_source(self.parameters)
+        self.settings = declare_settings(self, FuzzyBestPointSettings,
+                                         apply=self._apply_settings, check=chooser_problem)
+        self._chooser = build_chooser(self.settings)
+        self._pose_source = build_pose_source(self.settings)
         self._static_transforms: dict[str, Transform] = {}
         self._pose_origin = ''
         # Compile (first run) or load the numba point kernel now, not on the first input.
@@ -146,8 +148,7 @@ class FuzzyBestPointNode(Node):
             DiagnosticArray, DIAGNOSTICS_TOPIC, qos.DIAGNOSTICS)
         self.create_subscription(StereoMatches, MATCHES_TOPIC, self._on_matches, qos.RESULTS)
         self.create_subscription(TFMessage, TF_STATIC_TOPIC, self._on_tf_static, qos.TF_STATIC)
-        self.create_timer(float(self.parameters['diagnostics_period']),
-                          self._publish_diagnostics)
+        self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(
             f'choosing best points with {self._describe()} from {MATCHES_TOPIC}')
 
@@ -157,15 +158,15 @@ class FuzzyBestPointNode(Node):
             return f'{chooser.selector} (rule base {chooser.rule_base.name!r})'
         return chooser.selector
 
-    def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
-        chooser = build_chooser(values)  # validated already
+    def _apply_settings(self, settings: FuzzyBestPointSettings) -> None:
+        chooser = build_chooser(settings)  # validated already
         with self._lock:
-            self.parameters = values
+            self.settings = settings
             self._chooser = chooser
         self.get_logger().info(f'now choosing with {self._describe()}')
 
     def _on_matches(self, msg: StereoMatches) -> None:
-        header = Header(stamp=msg.header.stamp, frame_id=str(self.parameters['world_frame']))
+        header = Header(stamp=msg.header.stamp, frame_id=self.settings.world.world_frame)
         with self._lock:
             chooser = self._chooser
         try:
@@ -249,14 +250,14 @@ class FuzzyBestPointNode(Node):
         made = self.decisions[STATUS_OK]
         refused = {reason: self.decisions[reason] for reason in REFUSAL_REASONS}
         status = DiagnosticStatus(name=f'{self.get_name()}: best point',
-                                  hardware_id=self._describe())
+                                  hardware_id=self.get_name())
         if made == 0 and not any(refused.values()):
             status.level, status.message = DiagnosticStatus.OK, 'waiting for input'
         elif self._last_status == STATUS_OK:
             status.level, status.message = DiagnosticStatus.OK, 'choosing best points'
         else:
             status.level, status.message = DiagnosticStatus.WARN, self._last_status
-        values: list[tuple[str, object]] = [('selector', self._chooser.selector),
+        values: list[tuple[str, object]] = [('selector', self._describe()),
                                             ('camera pose from', self._pose_origin or
                                              self._pose_source.origin),
                                             ('decisions made', made),
@@ -269,18 +270,8 @@ class FuzzyBestPointNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    """Run the node until shutdown."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = FuzzyBestPointNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Run the node until shutdown; a bad parameter or file ends it with one line."""
+    run_node(FuzzyBestPointNode, args)
 
 
 if __name__ == '__main__':
