@@ -61,7 +61,7 @@ def test_camera_topics_carry_one_stamp_and_stereo_sync_pairs_them(ros_context, t
     sync = StereoSyncNode(context=ros_context)
     camera = StereoCameraNode(context=ros_context, parameter_overrides=[
         Parameter(name, value=value) for name, value in
-        {**parameters, 'loop': True, 'frame_rate': 20.0, 'encoding': 'mono8'}.items()])
+        {**parameters, 'loop': True, 'frame_rate_hz': 20.0, 'encoding': 'mono8'}.items()])
     executor = SingleThreadedExecutor(context=ros_context)
     for node in (probe, sync, camera):
         executor.add_node(node)

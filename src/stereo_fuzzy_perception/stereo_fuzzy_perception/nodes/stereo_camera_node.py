@@ -10,28 +10,24 @@ or image pattern it logs once and stops, or starts again with `loop:=true`.
 
 from __future__ import annotations
 
-import sys
 import threading
 import time
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header
-from stereo_fuzzy_parameters.declaration import declare_parameters
-from stereo_fuzzy_parameters.spec import ParameterValue
+from stereo_fuzzy_parameters.declaration import StartupError, declare_settings, run_node
 
 from stereo_fuzzy_perception.core.camera_calibration_file import (
     CalibrationFileError,
     read_calibration_yaml,
 )
 from stereo_fuzzy_perception.nodes.conversions import array_to_image, calibration_to_camera_info
-from stereo_fuzzy_perception.nodes.stereo_camera_parameters import PARAMETERS
+from stereo_fuzzy_perception.nodes.stereo_camera_parameters import StereoCameraSettings
 from stereo_fuzzy_perception.nodes.stereo_sync_node import (
     DeviceCapture,
     StereoSyncSetupError,
@@ -44,38 +40,42 @@ CAMERA_OUTPUT = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
                            reliability=ReliabilityPolicy.RELIABLE)
 
 
-def check_parameters(values: dict[str, ParameterValue]) -> str | None:
-    """Return why the parameter values cannot work (a missing capture or file), or None."""
-    missing = [name for name in ('left_device', 'right_device', 'left_calibration_file',
-                                 'right_calibration_file') if not values[name]]
-    return 'stereo_camera_node needs ' + ', '.join(missing) if missing else None
-
-
 class StereoCameraNode(Node):
     """Capture two cameras; publish left|right image_raw and camera_info."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('stereo_camera_node', **kwargs)
-        self.parameters = declare_parameters(self, PARAMETERS, validate=check_parameters)
-        self.calibrations = tuple(
-            replace(read_calibration_yaml(str(self.parameters[f'{side}_calibration_file'])),
-                    frame_id=str(self.parameters[f'{side}_frame_id']))
-            for side in ('left', 'right'))
+        self.settings = declare_settings(self, StereoCameraSettings, apply=self._apply_settings)
+        settings = self.settings
+        try:
+            self.calibrations = (
+                replace(read_calibration_yaml(settings.left_calibration_file),
+                        frame_id=settings.left_frame_id),
+                replace(read_calibration_yaml(settings.right_calibration_file),
+                        frame_id=settings.right_frame_id))
+        except CalibrationFileError as error:
+            raise StartupError(str(error), self.get_name()) from None
         self.publishers_by_side = {
             side: (self.create_publisher(Image, f'{side}/image_raw', CAMERA_OUTPUT),
                    self.create_publisher(CameraInfo, f'{side}/camera_info', CAMERA_OUTPUT))
             for side in ('left', 'right')}
         self.frames_published = 0
         self.capture_state = 'running'
-        self._capture = DeviceCapture(str(self.parameters['left_device']),
-                                      str(self.parameters['right_device']))
+        try:
+            self._capture = DeviceCapture(str(settings.left_device), str(settings.right_device))
+        except StereoSyncSetupError as error:
+            raise StartupError(str(error), self.get_name()) from None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._capture_loop, name='stereo_camera',
                                         daemon=True)
         self._thread.start()
         self.get_logger().info(
-            f'capturing {self.parameters["left_device"]} and {self.parameters["right_device"]} '
-            f'at {self.parameters["frame_rate"]} Hz')
+            f'capturing {settings.left_device} and {settings.right_device} '
+            f'at {settings.frame_rate_hz} Hz')
+
+    def _apply_settings(self, settings: StereoCameraSettings) -> None:
+        # frame_rate_hz and loop may change while running; the capture thread reads them anew
+        self.settings = settings
 
     def _capture_loop(self) -> None:
         try:
@@ -92,7 +92,7 @@ class StereoCameraNode(Node):
         while not self._stop.is_set():
             frames = self._capture.read()
             if frames is None:
-                if not self._capture.is_live and self.parameters['loop'] and not rewound:
+                if not self._capture.is_live and self.settings.loop and not rewound:
                     self._capture.rewind()
                     rewound = True
                     continue
@@ -109,13 +109,13 @@ class StereoCameraNode(Node):
             else:
                 rewound = False
                 self._publish(*frames)
-            period = 1.0 / float(self.parameters['frame_rate'])
+            period = 1.0 / self.settings.frame_rate_hz
             next_frame = max(next_frame + period, time.monotonic())
             self._stop.wait(next_frame - time.monotonic())
 
     def _publish(self, left: np.ndarray, right: np.ndarray) -> None:
         stamp = self.get_clock().now().to_msg()
-        encoding = str(self.parameters['encoding'])
+        encoding = self.settings.encoding
         for side, frame, calibration in zip(('left', 'right'), (left, right), self.calibrations,
                                             strict=True):
             header = Header(stamp=stamp, frame_id=calibration.frame_id)
@@ -135,24 +135,4 @@ class StereoCameraNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Run the node until shutdown; a wiring mistake ends it with one line (exit 1)."""
-    rclpy.init(args=args)
-    node = None
-    failed = False
-    try:
-        node = StereoCameraNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (StereoSyncSetupError, CalibrationFileError, ValueError) as error:
-        rclpy.logging.get_logger('stereo_camera_node').fatal(f'cannot start: {error}')
-        failed = True
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    if failed:
-        sys.exit(1)
-
-
-if __name__ == '__main__':
-    main()
+    run_node(StereoCameraNode, args)
