@@ -25,6 +25,8 @@ def faults_from(values: dict[str, ParameterValue]) -> FaultInjection:
     return FaultInjection(
         drop_reply_to_line=int(values['drop_reply_to_line']),
         garble_reply_to_line=int(values['garble_reply_to_line']),
+        drop_reply_every_lines=int(values['drop_reply_every_lines']),
+        garble_reply_every_lines=int(values['garble_reply_every_lines']),
         refuse_line_pattern=str(values['refuse_line_pattern']),
         refuse_error_code=int(values['refuse_error_code']),
         alarm_axis=str(values['alarm_axis']),
@@ -74,6 +76,7 @@ class FakeGantry(Node):
             reply_delay_s=float(values['reply_delay_s']),  # type: ignore[arg-type]
             boot_delay_s=float(values['boot_delay_s']),  # type: ignore[arg-type]
             vanish_on_line=int(values['vanish_on_line']),
+            vanish_every_lines=int(values['vanish_every_lines']),
             vanish_duration_s=float(values['vanish_duration_s']),  # type: ignore[arg-type]
             received_lines_log=str(values['received_lines_log']))
         self.simulator = GrblSimulator(controller, options, self.get_logger().info)
@@ -86,6 +89,7 @@ class FakeGantry(Node):
             simulator.options.reply_delay_s = float(values['reply_delay_s'])  # type: ignore[arg-type]
             simulator.options.boot_delay_s = float(values['boot_delay_s'])  # type: ignore[arg-type]
             simulator.options.vanish_on_line = int(values['vanish_on_line'])
+            simulator.options.vanish_every_lines = int(values['vanish_every_lines'])
             simulator.options.vanish_duration_s = float(values['vanish_duration_s'])  # type: ignore[arg-type]
             simulator.controller.set_faults(faults_from(values))
 

@@ -39,6 +39,11 @@ PARAMETERS = [
                   maximum=1000000),
     ParameterSpec('garble_reply_to_line', 0, 'Fault injection: answer the n-th received line '
                   'with a corrupt reply (0 = off)', minimum=0, maximum=1000000),
+    ParameterSpec('drop_reply_every_lines', 0, 'Fault injection: never answer every n-th '
+                  'received line (n, 2n, ...; 0 = off)', minimum=0, maximum=1000000),
+    ParameterSpec('garble_reply_every_lines', 0, 'Fault injection: answer every n-th received '
+                  'line with a corrupt reply (n, 2n, ...; 0 = off)', minimum=0,
+                  maximum=1000000),
     ParameterSpec('refuse_line_pattern', '', 'Fault injection: answer lines matching this '
                   "regular expression with error:refuse_error_code ('' = off)"),
     ParameterSpec('refuse_error_code', 20, 'Fault injection: the error:N for refused lines',
@@ -52,6 +57,8 @@ PARAMETERS = [
     ParameterSpec('vanish_on_line', 0, 'Fault injection: close the pty right after receiving '
                   'the n-th line, before answering it (0 = never; once)', minimum=0,
                   maximum=1000000),
+    ParameterSpec('vanish_every_lines', 0, 'Fault injection: vanish likewise after every n-th '
+                  'received line (n, 2n, ...; 0 = never)', minimum=0, maximum=1000000),
     ParameterSpec('vanish_duration_s', 1.0, 'Fault injection: time until the pty comes back '
                   'at the same link_path [s]', minimum=0.0, maximum=60.0),
 ]

@@ -12,15 +12,13 @@ import threading
 import time
 import traceback
 from collections import Counter, deque
+from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import PointCloud2
-from stereo_fuzzy_parameters.declaration import declare_parameters
-from stereo_fuzzy_parameters.spec import ParameterValue
+from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 from stereo_msgs.msg import DisparityImage
 
 from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
@@ -30,6 +28,7 @@ from stereo_fuzzy_perception.core.matching.disparity_range import DisparityRange
 from stereo_fuzzy_perception.core.matching.rectification import RectificationError
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
 from stereo_fuzzy_perception.core.matching.window_matcher import MatcherInputError, warm_up
+from stereo_fuzzy_perception.core.rig_pose import RigPoseError
 from stereo_fuzzy_perception.nodes import qos
 from stereo_fuzzy_perception.nodes.conversions import (
     disparity_image_message,
@@ -37,13 +36,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     stereo_matches_message,
     stereo_pair_to_domain,
 )
-from stereo_fuzzy_perception.nodes.correlation_parameters import (
-    PARAMETERS,
-    config_problem,
-    derives_disparities,
-    matcher_config,
-    with_derived_disparities,
-)
+from stereo_fuzzy_perception.nodes.correlation_parameters import CorrelationSettings
 
 DROP_REASONS = ('superseded', 'calibration', 'size_mismatch', 'encoding', 'matcher_input',
                 'internal')
@@ -52,18 +45,17 @@ DROP_REASONS = ('superseded', 'calibration', 'size_mismatch', 'encoding', 'match
 class CorrelationNode(Node):
     """Match stereo pairs by window correlation and publish triangulated matches."""
 
-    def __init__(self, **kwargs: object) -> None:
-        super().__init__('correlation_node', **kwargs)  # type: ignore[arg-type]
-        self.parameters = declare_parameters(self, PARAMETERS, validate=config_problem,
-                                             apply=self._apply_parameters)
-        self.pipeline = StereoMatchingPipeline(matcher_config(self.parameters),
-                                               int(self.parameters['point_stride']))
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('correlation_node', **kwargs)
+        self.settings = declare_settings(self, CorrelationSettings, apply=self._apply_settings)
+        self.pipeline = StereoMatchingPipeline(self.settings.matcher_config(),
+                                               self.settings.point_stride)
         # disparity_range 0: the range derived for the last calibration seen
         self._derived_for: StereoCalibration | None = None
         input_qos = QoSProfile(depth=qos.RESULTS.depth, history=qos.RESULTS.history,
                                durability=qos.RESULTS.durability,
                                reliability=qos.reliability_from_name(
-                                   str(self.parameters['input_reliability'])))
+                                   self.settings.input_reliability))
         self.matches_publisher = self.create_publisher(StereoMatches, 'stereo/matches',
                                                        qos.RESULTS)
         self.points_publisher = self.create_publisher(PointCloud2, 'stereo/points', qos.RESULTS)
@@ -88,27 +80,27 @@ class CorrelationNode(Node):
         self._worker = threading.Thread(target=self._work, name='correlation_worker',
                                         daemon=True)
         self._worker.start()
-        self.create_timer(float(self.parameters['diagnostics_period_s']),
-                          self._publish_diagnostics)
+        self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(
             f'correlation_node started: {self.pipeline.config.method}, window '
             f'{self.pipeline.config.window_size}, disparities '
             + ('from the calibration, rig pose and workspace box'
-               if derives_disparities(self.parameters) else
+               if self.settings.derives_disparities else
                f'{self.pipeline.config.min_disparity}..{self.pipeline.config.max_disparity}'))
 
     # --- parameters and input -----------------------------------------------------------------
 
-    def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
+    def _apply_settings(self, settings: CorrelationSettings) -> None:
+        self.settings = settings
         self._derived_for = None
-        self.pipeline.config = matcher_config(values)
-        self.pipeline.point_stride = int(values['point_stride'])  # type: ignore[arg-type]
+        self.pipeline.config = settings.matcher_config()
+        self.pipeline.point_stride = settings.point_stride
         self.get_logger().info(f'matcher settings now {self.pipeline.config}')
 
     def _on_pair(self, pair: StereoPair) -> None:
         with self._condition:
             self.received += 1
-            if len(self._pending) >= int(self.parameters['input_queue_depth']):
+            if len(self._pending) >= self.settings.input_queue_depth:
                 self._pending.popleft()
                 self.dropped['superseded'] += 1
                 self.get_logger().warning(
@@ -122,18 +114,18 @@ class CorrelationNode(Node):
 
     def _work(self) -> None:
         seconds = warm_up()
-        # Subscribe only now: until the kernels are compiled (10-15 s on a fresh checkout) the
-        # node could not keep up, and upstream publishers (or `bag play --wait-for-subscribers`)
-        # can see on the graph when it is ready.
+        # Subscribe only once the matcher has run (its kernel loaded, its working memory
+        # faulted in), so that upstream publishers (or `bag play --wait-for-subscribers`) can
+        # see on the graph when it is ready.
         self.create_subscription(StereoPair, 'stereo/pair', self._on_pair, self._input_qos)
-        self.get_logger().info(f'matching kernels ready in {seconds:.2f} s (numba compile or '
-                               'cache load); subscribed to stereo/pair')
+        self.get_logger().info(f'matching kernel ready in {seconds:.2f} s; subscribed to '
+                               'stereo/pair')
         next_allowed = 0.0
         while True:
             with self._condition:
                 while not self._pending and not self._stopping:
                     self._condition.wait()
-                rate = float(self.parameters['max_rate_hz'])
+                rate = self.settings.max_rate_hz
                 while rate > 0.0 and not self._stopping and time.monotonic() < next_allowed:
                     self._condition.wait(next_allowed - time.monotonic())
                 if self._stopping:
@@ -162,7 +154,7 @@ class CorrelationNode(Node):
         except ImageEncodingError as error:
             self._drop('encoding', str(error))
             return
-        except (CalibrationError, DisparityRangeError) as error:
+        except (CalibrationError, DisparityRangeError, RigPoseError) as error:
             self._drop('calibration', str(error))
             return
         except RectificationError as error:
@@ -204,13 +196,13 @@ class CorrelationNode(Node):
         Raises:
             DisparityRangeError: When the box is not in view of both cameras.
         """
-        values = self.parameters
-        if not derives_disparities(values) or (
+        settings = self.settings
+        if not settings.derives_disparities or (
                 self._derived_for is not None
                 and self._derived_for.left.same_as(calibration.left)
                 and self._derived_for.right.same_as(calibration.right)):
             return
-        config = with_derived_disparities(matcher_config(values), values, calibration)
+        config = settings.with_derived_disparities(calibration)
         self.pipeline.config = config
         self._derived_for = calibration
         self.get_logger().info(
@@ -223,7 +215,7 @@ class CorrelationNode(Node):
             self.last_error = f'{reason}: {text.splitlines()[0]}'
         self._error_loggers[reason].error(
             f'stereo pair dropped ({reason}): {text}',
-            throttle_duration_sec=float(self.parameters['error_log_period_s']))
+            throttle_duration_sec=self.settings.error_log_period_s)
         self._publish_diagnostics()
 
     # --- diagnostics and shutdown -------------------------------------------------------------
@@ -245,7 +237,7 @@ class CorrelationNode(Node):
                          if reason != 'superseded')
         status = DiagnosticStatus(
             level=DiagnosticStatus.WARN if errors else DiagnosticStatus.OK,
-            name=f'{self.get_name()}: correlation', hardware_id=self.get_namespace(),
+            name=f'{self.get_name()}: correlation', hardware_id=self.get_name(),
             message=f'last error: {last_error}' if last_error else 'matching',
             values=[KeyValue(key=key, value=str(value)) for key, value in values.items()])
         array = DiagnosticArray(status=[status])
@@ -262,18 +254,8 @@ class CorrelationNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    """Run the node until shutdown."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = CorrelationNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Run the node until shutdown; a bad parameter ends it with one line."""
+    run_node(CorrelationNode, args)
 
 
 if __name__ == '__main__':

@@ -1,28 +1,35 @@
 """Choose the best point of the correlation area with the fuzzy system (or a baseline).
 
-Subscribes `stereo/matches` (StereoMatches), publishes `best_point` (PointStamped in `world`,
-stamped with the pair's stamp, only when a point was chosen) and `best_point/decision`
-(FuzzyDecision, for every input, with the reason when no point was chosen), and /diagnostics.
+Subscribes `stereo/matches` (StereoMatches) and `/tf_static`, publishes `best_point`
+(PointStamped in `world`, stamped with the pair's stamp, only when a point was chosen),
+`best_point/decision` (FuzzyDecision, for every input, with the reason when no point was
+chosen), `best_point/markers` (MarkerArray in `world`: the correlation area, border points,
+numbered area centres and best point, while someone subscribes) and /diagnostics.
 The algorithm is point_selectors.BestPointChooser; this node only converts and publishes. A
 decision takes a few milliseconds even at 100k points, so it runs in the subscription callback and
 every input gets its decision.
+
+The matches' frame is placed in `world` by, in this order: the pose file `rig_pose_file`, the
+transforms on /tf_static (a replayed bag that recorded them needs no rig parameters), or the
+chapter's rig.* numbers (core/rig_pose.py). A configured rig.baseline_m that disagrees with the
+calibration the matches carry refuses the decision (`rig_mismatch`), naming both baselines.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from collections import Counter
 from typing import Any
 
-import rclpy
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_msgs.msg import Header
-from stereo_fuzzy_parameters.declaration import declare_parameters
-from stereo_fuzzy_parameters.spec import ParameterValue
+from stereo_fuzzy_parameters.declaration import declare_settings, run_node
+from visualization_msgs.msg import MarkerArray
 
 from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
 from stereo_fuzzy_perception.core.best_point import correlation_area
@@ -40,45 +47,75 @@ from stereo_fuzzy_perception.core.best_point.point_selectors import (
     SelectorError,
 )
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+from stereo_fuzzy_perception.core.rig_pose import (
+    LEFT_CAMERA_FRAME,
+    RIG_PARAMETERS,
+    CameraPoseSource,
+    RigPoseError,
+    Transform,
+)
 from stereo_fuzzy_perception.nodes import qos
 from stereo_fuzzy_perception.nodes.conversions import (
     best_point_to_point_stamped,
     camera_info_to_calibration,
     cloud_to_matched_points,
+    decision_to_markers,
     decision_to_message,
+    tf_message_to_transforms,
 )
-from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import (
-    PARAMETERS,
-    area_config,
-    stereo_rig,
-)
+from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import FuzzyBestPointSettings
+from tf2_msgs.msg import TFMessage
 
 MATCHES_TOPIC = 'stereo/matches'
 BEST_POINT_TOPIC = 'best_point'
 DECISION_TOPIC = 'best_point/decision'
+MARKERS_TOPIC = 'best_point/markers'
 DIAGNOSTICS_TOPIC = '/diagnostics'
+TF_STATIC_TOPIC = '/tf_static'
 MALFORMED_INPUT = 'malformed_input'
+RIG_MISMATCH = 'rig_mismatch'
 REFUSAL_REASONS = (NO_POINTS, NO_OBJECT, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED,
-                   MALFORMED_INPUT)
+                   MALFORMED_INPUT, RIG_MISMATCH)
 ERROR_THROTTLE_S = 5.0
+HINT_THROTTLE_S = 60.0
 
 
-def build_chooser(values: dict[str, ParameterValue]) -> BestPointChooser:
-    """Return the chooser the parameter values describe.
+def build_chooser(settings: FuzzyBestPointSettings) -> BestPointChooser:
+    """Return the chooser the settings describe.
 
     Raises:
-        SelectorError: Unknown selector or an unusable rule base / weights file.
+        SelectorError: Unknown selector or an unusable rule base / weights file; the message
+            names the parameter and its value.
     """
-    return BestPointChooser.create(
-        str(values['selector']), area_config(values), stereo_rig(values),
-        rule_base_file=str(values['rule_base_file']), weights_file=str(values['network_file']))
-
-
-def check_parameters(values: dict[str, ParameterValue]) -> str | None:
-    """Return why the parameter values cannot work together (e.g. a bad rule base), or None."""
     try:
-        build_chooser(values)
+        return BestPointChooser.create(
+            settings.selector, settings.area_config(), settings.rig.stereo_rig(),
+            rule_base_file=settings.rule_base_file, weights_file=settings.network_file)
     except SelectorError as error:
+        # Name the file parameter the selector read, so the reason says what to change.
+        if settings.selector == 'neural_network' and settings.network_file:
+            raise SelectorError(f'network_file={settings.network_file!r}: {error}') from None
+        if settings.selector.startswith('fuzzy') and settings.rule_base_file:
+            raise SelectorError(f'rule_base_file={settings.rule_base_file!r}: {error}') from None
+        raise
+
+
+def build_pose_source(settings: FuzzyBestPointSettings) -> CameraPoseSource:
+    """Return where the camera pose comes from (pose file or rig.* numbers).
+
+    Raises:
+        RigPoseError: An unusable pose file.
+    """
+    return CameraPoseSource.from_settings(settings.rig.stereo_rig(), settings.rig_pose_file,
+                                          settings.world.world_frame)
+
+
+def chooser_problem(settings: FuzzyBestPointSettings) -> str | None:
+    """Return why the settings cannot work (e.g. a bad rule base or pose file), or None."""
+    try:
+        build_chooser(settings)
+        build_pose_source(settings)
+    except (SelectorError, RigPoseError) as error:
         return str(error)
     return None
 
@@ -89,9 +126,12 @@ class FuzzyBestPointNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('fuzzy_best_point_node', **kwargs)
         self._lock = threading.Lock()
-        self.parameters = declare_parameters(self, PARAMETERS, validate=check_parameters,
-                                             apply=self._apply_parameters)
-        self._chooser = build_chooser(self.parameters)
+        self.settings = declare_settings(self, FuzzyBestPointSettings,
+                                         apply=self._apply_settings, check=chooser_problem)
+        self._chooser = build_chooser(self.settings)
+        self._pose_source = build_pose_source(self.settings)
+        self._static_transforms: dict[str, Transform] = {}
+        self._pose_origin = ''
         # Compile (first run) or load the numba point kernel now, not on the first input.
         started = time.monotonic()
         correlation_area.warm_up()
@@ -104,11 +144,12 @@ class FuzzyBestPointNode(Node):
             PointStamped, BEST_POINT_TOPIC, qos.RESULTS)
         self.decision_publisher = self.create_publisher(
             FuzzyDecision, DECISION_TOPIC, qos.RESULTS)
+        self.markers_publisher = self.create_publisher(MarkerArray, MARKERS_TOPIC, qos.RESULTS)
         self.diagnostics_publisher = self.create_publisher(
             DiagnosticArray, DIAGNOSTICS_TOPIC, qos.DIAGNOSTICS)
         self.create_subscription(StereoMatches, MATCHES_TOPIC, self._on_matches, qos.RESULTS)
-        self.create_timer(float(self.parameters['diagnostics_period']),
-                          self._publish_diagnostics)
+        self.create_subscription(TFMessage, TF_STATIC_TOPIC, self._on_tf_static, qos.TF_STATIC)
+        self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(
             f'choosing best points with {self._describe()} from {MATCHES_TOPIC}')
 
@@ -118,15 +159,15 @@ class FuzzyBestPointNode(Node):
             return f'{chooser.selector} (rule base {chooser.rule_base.name!r})'
         return chooser.selector
 
-    def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
-        chooser = build_chooser(values)  # validated already
+    def _apply_settings(self, settings: FuzzyBestPointSettings) -> None:
+        chooser = build_chooser(settings)  # validated already
         with self._lock:
-            self.parameters = values
+            self.settings = settings
             self._chooser = chooser
         self.get_logger().info(f'now choosing with {self._describe()}')
 
     def _on_matches(self, msg: StereoMatches) -> None:
-        header = Header(stamp=msg.header.stamp, frame_id=str(self.parameters['world_frame']))
+        header = Header(stamp=msg.header.stamp, frame_id=self.settings.world.world_frame)
         with self._lock:
             chooser = self._chooser
         try:
@@ -145,8 +186,51 @@ class FuzzyBestPointNode(Node):
                                          reason=str(error))
             self._publish(decision, header, msg.header.frame_id)
             return
+        try:
+            chooser = dataclasses.replace(chooser, world_from_camera=self._world_from_camera(
+                StereoCalibration(left, right), msg.header.frame_id or LEFT_CAMERA_FRAME))
+        except RigPoseError as error:
+            self.get_logger().error(f'camera pose: {error}',
+                                    throttle_duration_sec=ERROR_THROTTLE_S)
+            self._publish(BestPointDecision(chooser.selector, status=RIG_MISMATCH,
+                                            reason=str(error)), header, msg.header.frame_id)
+            return
         decision = chooser.decide(points, left, right)
+        if (decision.status == NO_POINTS and decision.points_in > 0
+                and not self._pose_source.transforms and self._pose_origin == RIG_PARAMETERS):
+            self.get_logger().warning(
+                f'none of {decision.points_in} points lands in the workspace with the camera '
+                'pose of the rig.* parameters: if they do not describe this rig, give its pose '
+                'file (rig_pose_file, written by rig_calibration) or publish it on /tf_static',
+                throttle_duration_sec=HINT_THROTTLE_S)
         self._publish(decision, header, msg.header.frame_id)
+
+    def _on_tf_static(self, msg: TFMessage) -> None:
+        transforms = tf_message_to_transforms(msg)
+        with self._lock:
+            for transform in transforms:
+                self._static_transforms[transform.child_frame_id] = transform
+
+    def _world_from_camera(self, calibration: StereoCalibration,
+                           camera_frame: str) -> np.ndarray:
+        """Return world <- camera from the pose file, /tf_static or the rig.* numbers.
+
+        Raises:
+            RigPoseError: A configured baseline disagrees with the calibration, or the pose
+                file does not place `camera_frame`.
+        """
+        source = self._pose_source
+        if not source.transforms:
+            with self._lock:
+                static = list(self._static_transforms.values())
+            from_tf = source.with_transforms(static, TF_STATIC_TOPIC)
+            if static and from_tf.connects(camera_frame):
+                source = from_tf
+        if source.origin != self._pose_origin:
+            self._pose_origin = source.origin
+            self.get_logger().info(f'{camera_frame} placed in {source.world_frame} by '
+                                   f'{source.origin}')
+        return source.world_from_camera(calibration, camera_frame)
 
     def _publish(self, decision: BestPointDecision, header: Header, camera_frame: str) -> None:
         self.decisions[decision.status] += 1
@@ -160,19 +244,23 @@ class FuzzyBestPointNode(Node):
         else:
             self.get_logger().debug(f'no best point: {decision.status_text()}')
         self.decision_publisher.publish(decision_to_message(decision, header, camera_frame))
+        if self.markers_publisher.get_subscription_count() > 0:
+            self.markers_publisher.publish(decision_to_markers(decision, header))
 
     def _publish_diagnostics(self) -> None:
         made = self.decisions[STATUS_OK]
         refused = {reason: self.decisions[reason] for reason in REFUSAL_REASONS}
         status = DiagnosticStatus(name=f'{self.get_name()}: best point',
-                                  hardware_id=self._describe())
+                                  hardware_id=self.get_name())
         if made == 0 and not any(refused.values()):
             status.level, status.message = DiagnosticStatus.OK, 'waiting for input'
         elif self._last_status == STATUS_OK:
             status.level, status.message = DiagnosticStatus.OK, 'choosing best points'
         else:
             status.level, status.message = DiagnosticStatus.WARN, self._last_status
-        values: list[tuple[str, object]] = [('selector', self._chooser.selector),
+        values: list[tuple[str, object]] = [('selector', self._describe()),
+                                            ('camera pose from', self._pose_origin or
+                                             self._pose_source.origin),
                                             ('decisions made', made),
                                             ('decisions refused', sum(refused.values()))]
         values += [(f'refused {reason}', count) for reason, count in refused.items()]
@@ -183,18 +271,8 @@ class FuzzyBestPointNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    """Run the node until shutdown."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = FuzzyBestPointNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Run the node until shutdown; a bad parameter or file ends it with one line."""
+    run_node(FuzzyBestPointNode, args)
 
 
 if __name__ == '__main__':

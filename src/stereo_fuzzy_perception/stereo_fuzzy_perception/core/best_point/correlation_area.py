@@ -9,12 +9,13 @@ the package README:
    distances from that plane, each with its own sigma_h = sigma_d * height_per_disparity. The
    object is the region of the left image's match grid that stands out of the surface in
    sigmas, and the correlation area is its top face (object_segmentation.py). The top height
-   is the world z of that face.
+   is that face's height above the measured surface (z = 0 of `world` by definition), so a
+   rig pose a few millimetres off does not move it.
 2. Border points (4.1): the points of minimum and maximum u and v in the left rectified image.
 3. Four areas (Fig. 4): the area's bounding box in the left rectified image split through its
-   middle: 1 top-left, 2 bottom-left, 3 top-right, 4 bottom-right. For each area its centre (mean
-   of its points in 3D and in both images), d1 and d2 (pixel distance of that centre from the
-   principal point of the left and right rectified image) and r = d1 / d2.
+   middle: 1 top-left, 2 bottom-left, 3 top-right, 4 bottom-right. For each area its centre
+   (weighted mean of its points in 3D and in both images), d1 and d2 (pixel distance of that
+   centre from the principal point of the left and right rectified image) and r = d1 / d2.
 """
 
 from __future__ import annotations
@@ -144,7 +145,9 @@ class CorrelationArea:
             surface around it (SURFACE_AROUND_M).
         clusters_found: Regions of the image grid standing out of the surface noise.
         points_used: Points of the correlation area.
-        top_height: World z of the object's top face [m] (NaN when unknown).
+        top_height: Height of the object's top face above the measured work surface [m]
+            (NaN when unknown): its world z, the surface being z = 0 of `world`, whatever
+            small error the rig pose has.
         xyz_world: (M, 3) area points in `world` [m].
         u_left: (M,) [px].
         v_left: (M,) [px].
@@ -372,7 +375,7 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     weight = disparity[band] ** -3.0 if on_pixel_grid(u_left) else np.ones(used)
     weight /= weight.mean()
     return CorrelationArea(STATUS_OK, '', points_in, valid, regions, used,
-                           float(np.median(xyz_world[:, 2])), xyz_world, u_left[band],
+                           float(np.median(heights[band])), xyz_world, u_left[band],
                            v_left[band], u_right[band], score[band], weight, surface,
                            found.median_sigmas)
 

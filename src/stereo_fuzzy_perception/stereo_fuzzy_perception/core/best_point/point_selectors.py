@@ -102,6 +102,7 @@ class BestPointDecision:
         firing_strengths: (L,).
         eq10_point: (3,) Eq. 10 point before the height rule [m], or None.
         consequent_points: (L, 3) the rules' y_l [m].
+        area_points_world: (M, 3) the correlation area's points in `world` [m] (for markers).
         surface: The work surface measured from the points, and their disparity noise.
         object_height_sigmas: Median height of the object's region in sigmas of its noise.
     """
@@ -132,6 +133,7 @@ class BestPointDecision:
     firing_strengths: np.ndarray = field(default_factory=lambda: np.zeros(0))
     eq10_point: np.ndarray | None = None
     consequent_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    area_points_world: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     surface: SurfacePlane = ASSUMED_SURFACE
     object_height_sigmas: float = math.nan
 
@@ -229,6 +231,7 @@ class BestPointChooser:
         decision.points_in, decision.points_valid = area.points_in, area.points_valid
         decision.clusters_found, decision.points_used = area.clusters_found, area.points_used
         decision.top_height = area.top_height
+        decision.area_points_world = area.xyz_world
         if not area.ok:
             return self._refuse(decision, area.status, area.reason)
         areas = split_into_areas(area, principal_point(left), principal_point(right))
