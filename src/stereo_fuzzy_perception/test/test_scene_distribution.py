@@ -239,7 +239,9 @@ def test_render_scenes_from_a_distribution_rig_is_reproducible(tmp_path):
         assert main(['-o', str(tmp_path / name), *arguments]) == 0
     first, second = (list(read_messages(tmp_path / name)) for name in ('a', 'b'))
     assert [m.data for m in first] == [m.data for m in second]
-    assert read_info(tmp_path / 'a').message_count == 6
+    info = read_info(tmp_path / 'a')
+    assert info.message_count == 7, 'six messages for the scene and /tf_static with the rig'
+    assert info.topic('/tf_static').message_count == 1
     parameters = yaml.safe_load((tmp_path / 'a' / 'chain_params.yaml').read_text())
     assert parameters['fuzzy_best_point_node']['ros__parameters']['rig']['z0_m'] == \
         pytest.approx(rig_pool()[32].rig.z0_m)
