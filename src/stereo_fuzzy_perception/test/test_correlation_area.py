@@ -243,3 +243,15 @@ def test_a_zero_max_object_across_is_refused():
     with pytest.raises(CorrelationAreaError, match='max_object_across_m=0'):
         find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT,
                               AreaConfig(max_object_across_m=0.0))
+
+
+def test_a_top_higher_than_any_object_is_refused():
+    # A face 150 mm up: no object stands that high (a blob of mismatches floats there).
+    tower = Box((0.2, 0.15), 0.04, 0.15)
+    area = area_in(RIG, tower, 0.1, 3)
+    assert area.status == NO_OBJECT, f'expected the face refused, got {area.status}'
+    assert 'higher than any object' in area.reason
+    assert 'max_object_height_m=0.1' in area.reason
+    allowed = area_in(RIG, tower, 0.1, 3, config=AreaConfig(max_object_height_m=0.2))
+    assert allowed.status == STATUS_OK, allowed.reason
+    assert allowed.top_height == pytest.approx(0.15, abs=0.002)
