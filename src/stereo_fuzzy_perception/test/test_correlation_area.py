@@ -17,6 +17,7 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     find_correlation_area,
     split_into_areas,
 )
+from stereo_fuzzy_perception.core.best_point.object_segmentation import across_m
 from stereo_fuzzy_perception.core.best_point.work_surface import SURFACE_MEASURED
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
@@ -211,3 +212,48 @@ def test_top_height_of_geometric_scene_is_the_object_top(kind):
     assert area.top_height == pytest.approx(scene.target_world[2], abs=0.001)
     horizontal = np.hypot(*(area.xyz_world[:, :2].mean(axis=0) - scene.target_world[:2]))
     assert horizontal < 0.005, f'top band centroid {1000 * horizontal:.2f} mm off'
+
+
+def test_a_top_longer_than_any_object_is_refused():
+    # A 150 mm slab is a patch of the surface or of the view's edge, not an object to pick.
+    slab = Box((0.2, 0.15), 0.15, 0.03)
+    area = area_in(RIG, slab, 0.1, 3)
+    assert area.status == NO_OBJECT, f'expected the slab refused, got {area.status}'
+    assert 'longer than any object' in area.reason
+    assert 'max_object_across_m=0.1' in area.reason
+    allowed = area_in(RIG, slab, 0.1, 3, config=AreaConfig(max_object_across_m=0.3))
+    assert allowed.status == STATUS_OK, allowed.reason
+
+
+def test_the_largest_object_is_not_refused_for_its_size():
+    # An 80 mm box (the largest object) along its diagonal is still an object.
+    area = area_in(FAR_RIG, Box((0.2, 0.15), 0.08, 0.03), 0.15, 1)
+    assert area.status == STATUS_OK, area.reason
+
+
+def test_across_m_measures_the_long_side_whatever_the_orientation():
+    rng = np.random.default_rng(3)
+    strip = rng.uniform([-0.04, -0.01], [0.04, 0.01], (4000, 2))
+    angle = math.radians(35.0)
+    rotation = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
+    assert across_m(strip) == pytest.approx(0.08, rel=0.03)
+    assert across_m(strip @ rotation.T) == pytest.approx(0.08, rel=0.03)
+    assert across_m(strip[:1]) == 0.0
+
+
+def test_a_zero_max_object_across_is_refused():
+    with pytest.raises(CorrelationAreaError, match='max_object_across_m=0'):
+        find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT,
+                              AreaConfig(max_object_across_m=0.0))
+
+
+def test_a_top_higher_than_any_object_is_refused():
+    # A face 150 mm up: no object stands that high (a blob of mismatches floats there).
+    tower = Box((0.2, 0.15), 0.04, 0.15)
+    area = area_in(RIG, tower, 0.1, 3)
+    assert area.status == NO_OBJECT, f'expected the face refused, got {area.status}'
+    assert 'higher than any object' in area.reason
+    assert 'max_object_height_m=0.1' in area.reason
+    allowed = area_in(RIG, tower, 0.1, 3, config=AreaConfig(max_object_height_m=0.2))
+    assert allowed.status == STATUS_OK, allowed.reason
+    assert allowed.top_height == pytest.approx(0.15, abs=0.002)

@@ -27,6 +27,7 @@ import numba
 import numpy as np
 
 from stereo_fuzzy_perception.core.best_point.object_segmentation import (
+    across_m,
     choose_object,
     grid_step,
     grown_region,
@@ -98,6 +99,13 @@ class AreaConfig:
         min_disparity_sigma_px: Lower bound of the measured disparity noise [px].
         assumed_disparity_sigma_px: Disparity noise when the surface cannot be measured [px].
         min_points: Fewer points in the correlation area means no best point.
+        max_object_across_m: A top face longer than this on the surface (along its principal
+            axis, object_segmentation.across_m) is no object's [m]: the objects are at most
+            80 mm across, plus the rim that window matching adds; a longer one is a patch of
+            the surface or of the view's edge, and a wrong point is worse than none.
+        max_object_height_m: A top face higher than this above the work surface is no
+            object's [m]: the objects stand at most 80 mm high; a higher face is a blob of
+            mismatches (repeated texture matched a period off) floating over the scene.
     """
 
     workspace_min: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -110,6 +118,8 @@ class AreaConfig:
     min_disparity_sigma_px: float = 0.03
     assumed_disparity_sigma_px: float = 0.2
     min_points: int = 20
+    max_object_across_m: float = 0.10
+    max_object_height_m: float = 0.10
 
     def problem(self) -> str | None:
         """Return why this configuration is unusable, or None."""
@@ -119,7 +129,8 @@ class AreaConfig:
                 return (f'workspace box axis {"xyz"[axis]}: min {low} must be below max {high}')
         for name in ('surface_search_m', 'surface_margin_sigmas', 'object_sigmas',
                      'top_band_sigmas', 'smoothing_px', 'min_disparity_sigma_px',
-                     'assumed_disparity_sigma_px'):
+                     'assumed_disparity_sigma_px', 'max_object_across_m',
+                     'max_object_height_m'):
             if not getattr(self, name) > 0.0:
                 return f'{name}={getattr(self, name)} must be positive'
         if self.object_sigmas < self.surface_margin_sigmas:
@@ -369,6 +380,17 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                                        f'min_points={config.min_points}', surface, regions,
                        found.median_sigmas)
     xyz_world = np.ascontiguousarray(world[:, band].T)
+    if top > config.max_object_height_m:
+        return refused(NO_OBJECT, f'the top face found stands {1000.0 * top:.0f} mm above the '
+                                  'work surface, higher than any object '
+                                  f'(max_object_height_m={config.max_object_height_m:g})',
+                       surface, regions, found.median_sigmas)
+    length = across_m(xyz_world[:, :2])
+    if length > config.max_object_across_m:
+        return refused(NO_OBJECT, f'the top face found is {1000.0 * length:.0f} mm long on the '
+                                  'work surface, longer than any object '
+                                  f'(max_object_across_m={config.max_object_across_m:g})',
+                       surface, regions, found.median_sigmas)
     # A match on the pixel grid stands for the patch of the face its pixel sees,
     # Z_rect^3 / (f^2 |n . v|): |n . v| is the same for every point of a level face and Z_rect
     # is f B / d. Matches anywhere else (geometric scenes) are taken as spread evenly.

@@ -168,6 +168,22 @@ class ObjectRegion:
     top_m: float = math.nan
 
 
+def across_m(xy: np.ndarray) -> float:
+    """Return the length [m] of a set of points on the surface along their principal axis.
+
+    The side of the uniform strip with the same spread, sqrt(12 * largest variance): the long
+    side of a rectangle, 0.87 times the diameter of a disc, whatever its orientation, and
+    hardly moved by a few stray points.
+
+    Args:
+        xy: (M, 2) positions on the surface [m].
+    """
+    if len(xy) < 2:
+        return 0.0
+    spread = np.cov(np.asarray(xy, dtype=float).T)
+    return math.sqrt(12.0 * max(float(np.linalg.eigvalsh(spread)[-1]), 0.0))
+
+
 def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights: np.ndarray,
                   sigmas: np.ndarray, object_sigmas: float, top_sigmas: float,
                   min_points: int) -> ObjectRegion:

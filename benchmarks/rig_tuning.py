@@ -1,0 +1,104 @@
+#!/usr/bin/env python3
+"""DEVELOPMENT ONLY: tune the correlation area on the TRAIN split of the randomized scenes.
+
+Never run this on the evaluation split: rig_generalisation_benchmark.py measures there, once,
+what was tuned here. This renders and matches train-split scenes (simulation/scene_distribution
+.py, split 'train': rigs and scene seeds of their own) at one point stride with
+correlation_node's default settings, caches the matched points (pickle, --cache), and grades
+the centroid and fuzzy_fitted selectors with the AreaConfig defaults; per scene it lists the
+error or why no point was chosen (the correlation area's status and reason), worst first.
+
+    source scripts/env.sh
+    nice python benchmarks/rig_tuning.py --per-type 15
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pickle
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / 'src' / 'stereo_fuzzy_perception'))
+for variable in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
+    os.environ.setdefault(variable, '1')
+
+import numpy as np  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser  # noqa: E402
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
+from stereo_fuzzy_perception.simulation.distribution_source import match_plan  # noqa: E402
+from stereo_fuzzy_perception.simulation.scene_distribution import split_plan  # noqa: E402
+from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene  # noqa: E402
+
+SPLIT = 'train'
+"""The only split this script reads."""
+
+
+def scenes(per_type: int, stride: int, cache: Path, jobs: int
+           ) -> list[tuple[str, SyntheticScene]]:
+    """Return (label, matched scene) of the train-split scenes (cached after the first run)."""
+    path = cache / f'rig_tuning_{SPLIT}_{per_type}_{stride}.pickle'
+    if path.exists():
+        loaded: list[tuple[str, SyntheticScene]] = pickle.loads(path.read_bytes())
+        return loaded
+    plan = split_plan(SPLIT, per_type)
+    result = [(f'seed {item.scene.seed} rig {item.scene.rig.index} '
+               f'top {item.scene.top_width_px:.0f} px {item.scene.scene.object_texture_family}',
+               item.matched[stride]) for item in match_plan(plan, (stride,), jobs=jobs)]
+    cache.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(pickle.dumps(result))
+    return result
+
+
+def main() -> None:
+    """Grade the selectors on the cached train-split scenes and list the failures."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--per-type', type=int, default=15, help='train scenes per type')
+    parser.add_argument('--point-stride', type=int, default=1)
+    parser.add_argument('--jobs', type=int, default=2)
+    parser.add_argument('--tolerance-mm', type=float, default=3.0)
+    parser.add_argument('--cache', default='/tmp/rig_tuning_cache')
+    parser.add_argument('--show', type=int, default=25, help='worst scenes listed')
+    parser.add_argument('--area', action='append', default=[], metavar='NAME=VALUE',
+                        help='an AreaConfig value other than its default (float)')
+    args = parser.parse_args()
+    matched = scenes(args.per_type, args.point_stride, Path(args.cache), args.jobs)
+    config = replace(AreaConfig(), **{item.partition('=')[0]: float(item.partition('=')[2])
+                                      for item in args.area})
+    for name in ('centroid', 'fuzzy_fitted'):
+        chooser = BestPointChooser.create(name, config, StereoRig())
+        rows = []
+        for label, scene in matched:
+            posed = replace(chooser, world_from_camera=scene.rig.world_from_left_camera())
+            decision = posed.decide(scene.points, scene.left, scene.right)
+            point = decision.best_point_world
+            error = (float('nan') if point is None
+                     else 1000.0 * float(np.linalg.norm(point - scene.target_world)))
+            offset = (np.full(3, np.nan) if point is None
+                      else 1000.0 * (point - scene.target_world))
+            rows.append((error, label, scene, decision, offset))
+        errors = np.array([row[0] for row in rows])
+        decided = np.isfinite(errors)
+        within = 100.0 * float(np.sum(errors[decided] <= args.tolerance_mm)) / len(errors)
+        offsets = np.array([row[4] for row in rows])
+        median_abs = np.nanmedian(np.abs(offsets), axis=0)
+        print(f'{name}: median |dx|, |dy|, |dz| {median_abs[0]:.2f}, {median_abs[1]:.2f}, '
+              f'{median_abs[2]:.2f} mm')
+        print(f'{name}: {len(errors)} train scenes, within {args.tolerance_mm:g} mm {within:.0f} %'
+              f', mean {np.mean(errors[decided]):.2f} mm, max {np.max(errors[decided]):.1f} mm,'
+              f' {int(np.sum(~decided))} without a point')
+        if name != 'centroid':
+            continue
+        rows.sort(key=lambda row: -np.inf if np.isnan(row[0]) else -row[0])
+        for error, label, scene, decision, offset in rows[:args.show]:
+            print(f'  {error:7.1f} mm ({offset[0]:6.1f} {offset[1]:6.1f} {offset[2]:6.1f}) '
+                  f'{scene.object_type:16s} {label} '
+                  f'{decision.status}: {decision.reason[:160]}')
+
+
+if __name__ == '__main__':
+    main()
