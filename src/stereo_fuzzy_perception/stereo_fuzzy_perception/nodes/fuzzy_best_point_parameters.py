@@ -54,6 +54,12 @@ class FuzzyBestPointSettings:
     min_points: int = parameter(
         _AREA.min_points, 'Fewer points in the correlation area means no best point',
         1, 1_000_000)
+    max_object_across_m: float = parameter(
+        _AREA.max_object_across_m, 'A top face longer than this on the surface (its principal '
+        'axis) is no object: refused, not taken [m]', 0.001, 10.0)
+    max_object_height_m: float = parameter(
+        _AREA.max_object_height_m, 'A top face higher than this above the work surface is no '
+        'object: refused, not taken [m]', 0.001, 10.0)
     # --- rig pose: a pose file (static_transform_publisher form), /tf_static, or the chapter's
     # alpha, theta, z0 (+ x0, y0, vergence) converted to the same transform (core/rig_pose.py)
     rig_pose_file: str = parameter(
@@ -74,7 +80,8 @@ class FuzzyBestPointSettings:
             top_band_sigmas=self.top_band_sigmas, smoothing_px=self.smoothing_px,
             min_disparity_sigma_px=self.min_disparity_sigma_px,
             assumed_disparity_sigma_px=self.assumed_disparity_sigma_px,
-            min_points=self.min_points)
+            min_points=self.min_points, max_object_across_m=self.max_object_across_m,
+            max_object_height_m=self.max_object_height_m)
 
     def problem(self) -> str | None:
         """Return why the correlation area settings cannot work, or None."""
