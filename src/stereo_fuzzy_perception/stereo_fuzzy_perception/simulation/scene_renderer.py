@@ -4,7 +4,7 @@ What comes out is what two real cameras and a stereo calibration would give: a l
 image, the calibration (K, D, R, P of each camera from cv2.stereoRectify with the rig's R, T, as
 a stereo calibration publishes it), and the ground truth (the centre of the object's top face).
 
-Camera conventions (see /work/shared/notes/pybullet-rendering.md):
+Camera conventions (pybullet's OpenGL camera, mapped to the ROS pinhole model):
 
 * fx = fy = (H / 2) / tan(vertical_fov / 2); principal point cx = W / 2, cy = H / 2 - 1.
 * Camera poses come from rig_geometry.StereoRig (optical frames: x right, y down, z forward).
@@ -391,8 +391,8 @@ class SceneRenderer:
         pybullet caches textures by file path for the life of a connection (resetSimulation
         keeps them): reloading 'surface.bmp' with new pixels returned the first scene's
         texture, so a scene looked different depending on what was rendered before it, and
-        unique file names instead leak about 5 MB per scene. A new DIRECT connection costs
-        about a millisecond and frees everything.
+        unique file names instead leak memory with every scene. A new DIRECT connection is
+        cheap and frees everything.
         """
         pybullet.disconnect(self._client)
         self._client = pybullet.connect(pybullet.DIRECT)
