@@ -1,6 +1,7 @@
 """Drive a Grbl-compatible 3-axis gantry from best points over a serial line.
 
-A thin adapter around GrblLink (grbl_link.py). Threading: the serial port belongs to the
+A thin adapter around GrblLink (grbl_link.py), the serial runner of the sans-I/O
+GrblSession (grbl_session.py). Threading: the serial port belongs to the
 link's own I/O thread, so a slow or dead controller never blocks this node's executor. The
 link hands events back through a thread-safe queue and a guard condition; the guard
 condition's callback runs in the executor, which is the only thread that publishes, completes
@@ -13,6 +14,7 @@ group would keep the guard condition that completes it from ever running (a dead
 from __future__ import annotations
 
 import queue
+import sys
 from typing import Any
 
 import rclpy
@@ -21,6 +23,7 @@ from geometry_msgs.msg import PointStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
@@ -50,17 +53,18 @@ from .gcode import (
     Vector3,
     WorkspaceLimits,
     as_vector3,
+    check_feed,
     check_target,
     plan_move,
 )
-from .grbl_link import (
+from .grbl_link import GrblLink, LinkConfig
+from .link_events import (
     GantrySnapshot,
-    GrblLink,
-    LinkConfig,
     LinkEvent,
     MoveFeedback,
     MoveFinished,
     RequestFinished,
+    SessionConfig,
 )
 
 
@@ -81,24 +85,27 @@ def motion_config_from(values: dict[str, Any]) -> MotionConfig:
         approach_offset_m=values['approach_offset_m'],
         default_feed_mm_min=values['feed_rate_mm_min'],
         max_rate_mm_min=as_vector3(values['max_rate_mm_min'], 'max_rate_mm_min'),
+        min_feed_mm_min=values['min_feed_rate_mm_min'],
     )
 
 
 def link_config_from(values: dict[str, Any]) -> LinkConfig:
     """Build the serial link configuration from parameter values."""
-    return LinkConfig(
-        port=values['port'], baud=values['baud'], streaming_mode=values['streaming_mode'],
-        poll_period_s=1.0 / values['poll_rate_hz'],
+    session = SessionConfig(
+        streaming_mode=values['streaming_mode'], poll_period_s=1.0 / values['poll_rate_hz'],
         banner_timeout_s=values['banner_timeout_s'], reply_timeout_s=values['reply_timeout_s'],
         homing_timeout_s=values['homing_timeout_s'], link_timeout_s=values['link_timeout_s'],
         stop_timeout_s=values['stop_timeout_s'],
-        reconnect_initial_s=values['reconnect_initial_s'],
-        reconnect_max_s=values['reconnect_max_s'],
         new_target_policy=values['new_target_policy'],
         max_queued_moves=values['max_queued_moves'],
         position_tolerance_mm=values['position_tolerance_mm'],
         require_homing_at_start=values['require_homing_at_start'],
-        sent_lines_log=values['sent_lines_log'],
+    )
+    return LinkConfig(
+        port=values['port'], baud=values['baud'],
+        reconnect_initial_s=values['reconnect_initial_s'],
+        reconnect_max_s=values['reconnect_max_s'],
+        sent_lines_log=values['sent_lines_log'], session=session,
     )
 
 
@@ -125,7 +132,7 @@ class GantryDriverNode(Node):
                                              apply=self._apply_parameters)
         values = self.parameters
         self._motion = motion_config_from(values)
-        self._snapshot = GantrySnapshot()
+        self._snapshot = GantrySnapshot(port=values['port'])
         self._last_rejection = ''
         self._events: queue.SimpleQueue[LinkEvent] = queue.SimpleQueue()
         self._move_futures: dict[int, Future] = {}
@@ -161,8 +168,7 @@ class GantryDriverNode(Node):
 
     def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
         self._motion = motion_config_from(values)
-        self._link.motion = self._motion  # replaced whole; the I/O thread reads it per move
-        self._link.config = link_config_from(values)
+        self._link.reconfigure(link_config_from(values), self._motion)
         self._diagnostics_timer.timer_period_ns = int(values['diagnostics_period_s'] * 1e9)  # type: ignore[operator]
 
     # -- link events (I/O thread -> executor) -------------------------------------------------
@@ -242,12 +248,16 @@ class GantryDriverNode(Node):
                                   self.parameters['max_target_age_s'], self._motion.limits)
             plan_move(target, None, 0.0, self._motion)  # the approach offset must fit too
         except TargetRejectedError as error:
-            self._last_rejection = f'{source}: {error.reason}'
-            self.get_logger().warning(f'rejected target from {source}: {error.reason}',
-                                      throttle_duration_sec=1.0)
-            self._publish_state()
+            self._reject(source, error.reason)
             return None
         return target
+
+    def _reject(self, source: str, reason: str) -> None:
+        """Log a refused request once per second at most and show it in gantry/state."""
+        self._last_rejection = f'{source}: {reason}'
+        self.get_logger().warning(f'rejected target from {source}: {reason}',
+                                  throttle_duration_sec=1.0)
+        self._publish_state()
 
     def _on_best_point(self, msg: PointStamped) -> None:
         target = self._validate_target(msg, 'best_point')
@@ -257,6 +267,12 @@ class GantryDriverNode(Node):
     async def _execute_move(self, goal_handle: ServerGoalHandle) -> MoveTo.Result:
         request = goal_handle.request
         target = self._validate_target(request.target, 'gantry/move_to')
+        if target is not None:
+            try:
+                check_feed(request.feed_rate_mm_min, self._motion)
+            except TargetRejectedError as error:
+                self._reject('gantry/move_to', error.reason)
+                target = None
         if target is None:
             goal_handle.abort()
             return to_result(MoveFinished(0, False, f'refused: {self._last_rejection}',
@@ -303,19 +319,38 @@ class GantryDriverNode(Node):
         super().destroy_node()
 
 
+def startup_failure(error: Exception) -> str:
+    """Return one line naming the bad parameter, its value and what is allowed."""
+    text = str(error)
+    for spec in PARAMETERS:
+        if isinstance(error, ParameterException) and text.endswith(f': {spec.name}'):
+            allowed = spec.constraint_text() or f'a {type(spec.default).__name__}'
+            return f'parameter {spec.name}: {text[:-len(spec.name) - 2]} (allowed: {allowed})'
+    return f'bad parameters: {text}'
+
+
 def main(args: list[str] | None = None) -> None:
-    """Run the node until shutdown."""
+    """Run the node until shutdown; a bad parameter ends it with one FATAL line, exit code 2."""
     rclpy.init(args=args)
     node = None
+    exit_code = 0
     try:
-        node = GantryDriverNode()
-        rclpy.spin(node)
+        try:
+            node = GantryDriverNode()
+        except (ValueError, ParameterException) as error:  # declared or validated values
+            rclpy.logging.get_logger('gantry_driver_node').fatal(
+                f'cannot start: {startup_failure(error)}')
+            exit_code = 2
+        else:
+            rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    if exit_code:
+        sys.exit(exit_code)
 
 
 if __name__ == '__main__':

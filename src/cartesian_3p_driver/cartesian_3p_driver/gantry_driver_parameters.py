@@ -38,26 +38,33 @@ PARAMETERS = [
     ParameterSpec('max_queued_moves', 4, 'Most moves waiting behind the running one (queue '
                   'policy); more are refused', minimum=0, maximum=1000),
     # Geometry: machine_mm = machine_offset_mm + axis_scale_mm_per_m * world_m, per axis
+    # Safety limits are read-only: no peer may widen them at run time.
     ParameterSpec('machine_offset_mm', [0.0, 0.0, 0.0], 'Machine coordinates of the world '
-                  'origin, x y z [mm]'),
+                  'origin, x y z; |offset| <= 100000 [mm]', read_only=True),
     ParameterSpec('axis_scale_mm_per_m', [1000.0, 1000.0, 1000.0], 'Machine mm per world m, '
-                  'x y z; negative flips an axis [mm/m]'),
-    ParameterSpec('workspace_min_m', [0.0, 0.0, 0.0], 'Lower workspace limits in world, x y z '
-                  '[m]'),
+                  'x y z; 1 <= |scale| <= 100000, negative flips an axis [mm/m]',
+                  read_only=True),
+    ParameterSpec('workspace_min_m', [0.0, 0.0, 0.0], 'Lower workspace limits in world, x y z; '
+                  'below workspace_max_m, within +-100000 mm once mapped to the machine [m]',
+                  read_only=True),
     ParameterSpec('workspace_max_m', [0.40, 0.30, 0.20], 'Upper workspace limits in world, '
-                  'x y z [m]'),
+                  "x y z; must fit the controller's travel ($130-$132) [m]", read_only=True),
     ParameterSpec('approach_strategy', 'lift_xy_descend', 'lift_xy_descend: lift Z to '
                   'safe_z_m, move XY, descend; direct: one straight line',
                   choices=APPROACH_STRATEGIES),
     ParameterSpec('safe_z_m', 0.15, 'Height the tool lifts to before moving in XY (inside the '
-                  'z limits) [m]', minimum=-100.0, maximum=100.0),
+                  'z limits) [m]', minimum=-100.0, maximum=100.0, read_only=True),
     ParameterSpec('approach_offset_m', 0.0, 'The tool stops this far above the target z [m]',
                   minimum=0.0, maximum=1.0),
     # Feeds
     ParameterSpec('feed_rate_mm_min', 1500.0, 'Feed when a request gives none [mm/min]',
                   minimum=1.0, maximum=100000.0),
     ParameterSpec('max_rate_mm_min', [3000.0, 3000.0, 1000.0], 'Per-axis maximum rates x y z; '
-                  'every feed is clamped so no axis exceeds its own [mm/min]'),
+                  "every feed is clamped so no axis exceeds its own; at most the controller's "
+                  '$110-$112 [mm/min]', read_only=True),
+    ParameterSpec('min_feed_rate_mm_min', 10.0, 'Slowest feed a move_to goal may ask for; '
+                  'slower goals are refused (0 still means the default feed) [mm/min]',
+                  minimum=1.0, maximum=100000.0, read_only=True),
     ParameterSpec('position_tolerance_mm', 0.02, 'Distance from the goal accepted as reached, '
                   'with the controller Idle [mm]', minimum=0.001, maximum=10.0),
     # Safety and timing
