@@ -17,8 +17,8 @@ only when one is chosen. Drop and stage figures are the differences of the nodes
 counters between the start and the end of each measurement (the chain is drained and fresh
 diagnostics awaited at both ends).
 
-Before measuring, pairs are published until the first decision arrives (the correlation node
-compiles or loads its numba kernels at start), then for --warm-up seconds at each rate.
+Before measuring, pairs are published until the first decision arrives (the fuzzy node compiles
+or loads its numba kernels at start), then for --warm-up seconds at each rate.
 Markdown tables go to stdout, progress to stderr. Timings on a shared machine are noisy.
 """
 
@@ -482,7 +482,7 @@ def run(args: argparse.Namespace) -> list[Measurement]:
                 group.start_node(PACKAGE, executable, *node_arguments(executable))
             wait_for(lambda: publisher.matched() and monitor.matched(), 60.0,
                      "the chain's subscriptions and publishers to match", monitor.spin, group)
-            progress('publishing until the first decision (numba kernels warm)')
+            progress('publishing until the first decision (kernels warm)')
             publisher.start(min(args.rates))
             wait_for(lambda: bool(monitor.decisions), 180.0, 'the first decision', monitor.spin,
                      group)

@@ -10,24 +10,25 @@
    estimate as bad; density and the mean absolute error among estimated pixels are shown too.
 2. Robustness: the same with the right image's brightness changed (gain 1.3, offset +20,
    clipped): Eq. 8 against Eq. 7 (plain) and StereoBM.
-3. Speed: ms per 640x480 pair, 64 disparities, 9x9 window, against StereoBM on the same images
-   in the same process (median of --repeats runs in 3 rounds, as a ratio; with every thread,
-   then with one thread each, so that the work per pair shows apart from how each method
-   scales on the machine's cores), the numba compile and cache-load cost (in fresh
-   processes), and the whole pipeline: rectify + match + triangulate + StereoMatches packing
-   (packing only when the ROS workspace is sourced).
+3. Speed: ms per pair, 9x9 window, at 320x240 with 32 disparities, 640x480 with 64 and
+   1280x960 with 128, against StereoBM (block 9) and StereoSGBM (block 5) on the same images in
+   the same process (median of --repeats runs in rounds of 3, as a ratio to StereoBM), with every
+   thread; and the whole correlation stage as correlation_node runs it, a StereoPair message in
+   and StereoMatches out (decode, rectify with a toed-in rig's maps, match, triangulate, pack;
+   the message parts only when the ROS workspace is sourced), at point_stride 1 and 3, with
+   its steps' times. Then each size with one thread each (OpenCV too), timed in CPU time of the
+   calling thread, so that the work per pair shows apart from how each method scales on the
+   machine's cores and from the time a loaded machine keeps a process waiting.
 
-Markdown tables go to stdout. Needs numpy, OpenCV and numba; imports the package from src/.
+Markdown tables go to stdout. Needs numpy and OpenCV, and the package built (scripts/setup.sh);
+imports the package from src/.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-import os
-import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -44,7 +45,12 @@ from stereo_fuzzy_perception.core.camera_model import (  # noqa: E402
     StereoCalibration,
 )
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline  # noqa: E402
-from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig, match, warm_up  # noqa: E402
+from stereo_fuzzy_perception.core.matching.window_matcher import (  # noqa: E402
+    MatcherConfig,
+    default_threads,
+    match,
+    warm_up,
+)
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
 
 SCENES = ('tsukuba', 'venus', 'sawtooth', 'barn1', 'cones', 'teddy')
@@ -143,39 +149,27 @@ def accuracy_table(scenes: list[Scene], right_transform: Callable[[np.ndarray], 
     return '\n'.join(lines)
 
 
-def speed_images(data_dir: Path) -> tuple[np.ndarray, np.ndarray]:
-    """A 640x480 pair: cones resized (real texture), or a synthetic texture without the data."""
+def speed_images(data_dir: Path, width: int = 640,
+                 height: int = 480) -> tuple[np.ndarray, np.ndarray]:
+    """A pair of `width` x `height`: cones resized (real texture), or a synthetic texture."""
     folder = data_dir / 'cones'
     left = cv2.imread(str(folder / 'left.png'), cv2.IMREAD_GRAYSCALE)
     right = cv2.imread(str(folder / 'right.png'), cv2.IMREAD_GRAYSCALE)
     if left is None or right is None:
         rng = np.random.default_rng(0)
-        scene = cv2.GaussianBlur(rng.uniform(0, 255, (480, 680)).astype(np.float32), (0, 0), 1.2)
+        shift = width // 32
+        scene = cv2.GaussianBlur(rng.uniform(0, 255, (height, width + shift)).astype(np.float32),
+                                 (0, 0), 1.2)
         scene = np.clip(128 + 3 * (scene - scene.mean()), 0, 255).astype(np.uint8)
-        return scene[:, :640].copy(), scene[:, 20:660].copy()
-    return (cv2.resize(left, (640, 480), interpolation=cv2.INTER_LINEAR),
-            cv2.resize(right, (640, 480), interpolation=cv2.INTER_LINEAR))
-
-
-def kernel_start_cost() -> tuple[float, float]:
-    """Return (cold compile, cached load) time of the kernels [s], each in a fresh process."""
-    package_dir = str(REPO_ROOT / 'src' / 'stereo_fuzzy_perception')
-    code = (f'import sys; sys.path.insert(0, {package_dir!r}); '
-            'from stereo_fuzzy_perception.core.matching.window_matcher import warm_up; '
-            'print(warm_up())')
-    with tempfile.TemporaryDirectory() as cache_dir:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
-        times = []
-        for _ in range(2):
-            done = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True,
-                                  text=True, check=True)
-            times.append(float(done.stdout.strip().splitlines()[-1]))
-    return times[0], times[1]
+        return scene[:, :width].copy(), scene[:, shift:shift + width].copy()
+    return (cv2.resize(left, (width, height), interpolation=cv2.INTER_LINEAR),
+            cv2.resize(right, (width, height), interpolation=cv2.INTER_LINEAR))
 
 
 def verged_calibration(width: int, height: int) -> StereoCalibration:
-    """A toed-in 640x480 rig calibrated as cv2.stereoRectify would (for the pipeline timing)."""
-    K = np.array([[520.0, 0.0, width / 2], [0.0, 520.0, height / 2], [0.0, 0.0, 1.0]])
+    """A toed-in rig (520 px focal length at 640 wide) calibrated as cv2.stereoRectify would."""
+    focal = 520.0 * width / 640.0
+    K = np.array([[focal, 0.0, width / 2], [0.0, focal, height / 2], [0.0, 0.0, 1.0]])
     D = np.array([-0.05, 0.01, 0.0, 0.0, 0.0])
     rotation, translation = StereoRig(baseline_m=0.06, vergence_deg=6.0).right_from_left()
     R1, R2, P1, P2, *_ = cv2.stereoRectify(K, D, K, D, (width, height), rotation,
@@ -184,91 +178,119 @@ def verged_calibration(width: int, height: int) -> StereoCalibration:
                              CameraCalibration(width, height, K, D, R2, P2))
 
 
+# (width, height, disparities) of the speed comparison; 640x480x64 is the reference case.
+SCALES = ((320, 240, 32), (640, 480, 64), (1280, 960, 128))
+BM = 'OpenCV StereoBM (block 9)'
+SGBM = 'OpenCV StereoSGBM (block 5)'
+OURS = 'stereo-fuzzy ZNCC (Eq. 8)'
+
+
 def speed_section(data_dir: Path, repeats: int) -> str:
+    first_call = warm_up()
+    stage = _stage_function()
+    lines = [f'Threads: {default_threads()} (ours, per call) and {cv2.getNumThreads()} '
+             f'(OpenCV); the stage is {stage.__doc__}.', '']
+    for width, height, disparities in SCALES:
+        lines.extend(scale_table(data_dir, width, height, disparities, repeats, stage))
+        lines.append('')
+    # One thread each, timed in CPU time: the work per pair, apart from how each method scales
+    # on this machine's cores and from the time a loaded machine keeps it waiting.
+    opencv_threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        for width, height, disparities in SCALES:
+            lines.extend(cpu_time_table(data_dir, width, height, disparities, repeats, stage))
+            lines.append('')
+    finally:
+        cv2.setNumThreads(opencv_threads)
     left, right = speed_images(data_dir)
     config = MatcherConfig(window_size=9, disparity_range=DISPARITIES)
-    plain = MatcherConfig(window_size=9, disparity_range=DISPARITIES, method='plain')
-    bm = cv2.StereoBM.create(numDisparities=DISPARITIES, blockSize=9)
-    sgbm = cv2.StereoSGBM.create(minDisparity=0, numDisparities=DISPARITIES, blockSize=5)
-    first_call = warm_up()
-    runners: dict[str, Callable[[], object]] = {
-        'stereo-fuzzy ZNCC (Eq. 8)': lambda: match(left, right, config),
-        'stereo-fuzzy plain (Eq. 7)': lambda: match(left, right, plain),
-        'OpenCV StereoBM (block 9)': lambda: bm.compute(left, right),
-        'OpenCV StereoSGBM (block 5)': lambda: sgbm.compute(left, right),
-    }
-    quarter = MatcherConfig(window_size=9, disparity_range=DISPARITIES,
-                            roi=(160, 120, 320, 240))
-    runners['stereo-fuzzy ZNCC, ROI 320x240 (Fig. 2)'] = lambda: match(left, right, quarter)
-    calibration = verged_calibration(640, 480)
-    pipeline = StereoMatchingPipeline(config)
-    packing = _packing_function()
-
-    def whole_pipeline() -> None:
-        result = pipeline.process(left, right, calibration)
-        if packing is not None:
-            packing(result, config)
-
-    runners['pipeline: rectify + match + triangulate' + (' + pack' if packing else '')] = (
-        whole_pipeline)
-    samples = timed_rounds(runners, repeats)
-    lines = speed_table(f'method (640x480, 64 disparities, {_threads()} threads)', samples,
-                        'OpenCV StereoBM (block 9)')
-    # One thread each: the work per pair, apart from how each method scales on this machine's
-    # cores (which on a shared VM changes from one minute to the next; README has the figures).
-    single = timed_rounds_on_one_thread({
-        'stereo-fuzzy ZNCC (Eq. 8)': runners['stereo-fuzzy ZNCC (Eq. 8)'],
-        'OpenCV StereoBM (block 9)': runners['OpenCV StereoBM (block 9)'],
-    }, repeats)
-    lines.append('')
-    lines.extend(speed_table('one thread each', single, 'OpenCV StereoBM (block 9)'))
-    gains = ', '.join(
-        f'{name} {np.median(single[name]) / np.median(samples[name]):.2f}x' for name in single)
-    lines.append('')
-    lines.append(f'Gain from 1 to {_threads()} threads: {gains}.')
-    cold, cached = kernel_start_cost()
-    lines.append('')
-    lines.append(f'numba kernels: cold compile {cold:.1f} s, load from cache {cached:.2f} s '
-                 f'(fresh processes); first call in this process {first_call:.2f} s; '
-                 f'{_threads()} threads. Not counted above.')
-    valid = match(left, right, config).valid.mean()
-    lines.append(f'Share of valid pixels on the speed pair: {100 * valid:.1f} %.')
+    lines.append(f'First call in this process (loads the kernel): {first_call * 1e3:.1f} ms. '
+                 f'Share of valid pixels on the 640x480 pair: '
+                 f'{100 * match(left, right, config).valid.mean():.1f} %.')
     return '\n'.join(lines)
 
 
-def timed_rounds(runners: dict[str, Callable[[], object]],
-                 repeats: int) -> dict[str, list[float]]:
-    """Return each runner's timed runs [ms]: 3 rounds, each one untimed run then repeats / 3.
+def scale_table(data_dir: Path, width: int, height: int, disparities: int, repeats: int,
+                stage: Callable) -> list[str]:
+    """Markdown rows: matchers and the whole correlation stage on one pair of this size."""
+    left, right = speed_images(data_dir, width, height)
+    config = MatcherConfig(window_size=9, disparity_range=disparities)
+    bm = cv2.StereoBM.create(numDisparities=disparities, blockSize=9)
+    sgbm = cv2.StereoSGBM.create(minDisparity=0, numDisparities=disparities, blockSize=5)
+    runners: dict[str, Callable[[], object]] = {
+        OURS: lambda: match(left, right, config),
+        BM: lambda: bm.compute(left, right),
+        SGBM: lambda: sgbm.compute(left, right),
+    }
+    if (width, height) == (640, 480):
+        plain = MatcherConfig(window_size=9, disparity_range=disparities, method='plain')
+        quarter = MatcherConfig(window_size=9, disparity_range=disparities,
+                                roi=(160, 120, 320, 240))
+        runners['stereo-fuzzy plain (Eq. 7)'] = lambda: match(left, right, plain)
+        runners['stereo-fuzzy ZNCC, ROI 320x240 (Fig. 2)'] = lambda: match(left, right, quarter)
+    calibration = verged_calibration(width, height)
+    for stride in (1, 3):
+        pipeline = StereoMatchingPipeline(config, point_stride=stride)
+        runners[f'correlation stage, point_stride {stride}'] = (
+            lambda pipeline=pipeline: stage(left, right, calibration, pipeline))
+    samples = timed_rounds(runners, repeats)
+    table = speed_table(f'{width}x{height}, {disparities} disparities', samples, BM)
+    parts = _stage_parts(left, right, calibration, config, repeats)
+    table.append(f'| (stage, point_stride 1, by part: {parts}) | | | |')
+    return table
 
-    Rounds of consecutive runs per method: calling numba's and OpenCV's thread pools
-    alternately makes each wait for the other's spinning workers, which neither meets in a node
-    that runs one matcher.
+
+def cpu_time_table(data_dir: Path, width: int, height: int, disparities: int, repeats: int,
+                   stage: Callable) -> list[str]:
+    """Markdown rows: CPU time per pair with one thread each (OpenCV set to one thread)."""
+    left, right = speed_images(data_dir, width, height)
+    config = MatcherConfig(window_size=9, disparity_range=disparities)
+    bm = cv2.StereoBM.create(numDisparities=disparities, blockSize=9)
+    calibration = verged_calibration(width, height)
+    runners: dict[str, Callable[[], object]] = {
+        OURS: lambda: match(left, right, config, threads=1),
+        BM: lambda: bm.compute(left, right),
+    }
+    for stride in (1, 3):
+        pipeline = StereoMatchingPipeline(config, point_stride=stride, threads=1)
+        runners[f'correlation stage, point_stride {stride}'] = (
+            lambda pipeline=pipeline: stage(left, right, calibration, pipeline))
+    samples = timed_rounds(runners, repeats, clock=time.thread_time)
+    return speed_table(f'{width}x{height}, {disparities} disparities, one thread each, CPU time',
+                       samples, BM)
+
+
+def _stage_parts(left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
+                 config: MatcherConfig, repeats: int) -> str:
+    """Median time of each step of StereoMatchingPipeline.process [ms], as it reports them."""
+    pipeline = StereoMatchingPipeline(config)
+    timings: dict[str, list[float]] = {}
+    for _ in range(max(3, repeats)):
+        for name, value in pipeline.process(left, right, calibration).timings_ms.items():
+            timings.setdefault(name, []).append(value)
+    return ', '.join(f'{name} {np.median(values):.2f} ms' for name, values in timings.items())
+
+
+def timed_rounds(runners: dict[str, Callable[[], object]], repeats: int,
+                 clock: Callable[[], float] = time.perf_counter) -> dict[str, list[float]]:
+    """Return each runner's timed runs [ms]: rounds of one untimed run and three timed ones.
+
+    Methods take turns round by round, so that the load of a shared machine, which changes from
+    one second to the next, falls on all of them alike; within a round the runs are consecutive,
+    so that a method does not wait for the threads the previous method left spinning (OpenCV's
+    pool), which it would not meet in a node that runs one matcher.
     """
     samples: dict[str, list[float]] = {name: [] for name in runners}
-    rounds = 3
-    for _ in range(rounds):
+    per_round = 3
+    for _ in range(max(1, (repeats + per_round - 1) // per_round)):
         for name, run in runners.items():
             run()
-            for _ in range(max(1, repeats // rounds)):
-                start = time.perf_counter()
+            for _ in range(per_round):
+                start = clock()
                 run()
-                samples[name].append(1e3 * (time.perf_counter() - start))
+                samples[name].append(1e3 * (clock() - start))
     return samples
-
-
-def timed_rounds_on_one_thread(runners: dict[str, Callable[[], object]],
-                               repeats: int) -> dict[str, list[float]]:
-    """timed_rounds with numba and OpenCV limited to one thread, restored afterwards."""
-    import numba
-
-    numba_threads, opencv_threads = numba.get_num_threads(), cv2.getNumThreads()
-    numba.set_num_threads(1)
-    cv2.setNumThreads(1)
-    try:
-        return timed_rounds(runners, repeats)
-    finally:
-        numba.set_num_threads(numba_threads)
-        cv2.setNumThreads(opencv_threads)
 
 
 def speed_table(title: str, samples: dict[str, list[float]], reference: str) -> list[str]:
@@ -282,25 +304,52 @@ def speed_table(title: str, samples: dict[str, list[float]], reference: str) -> 
     return lines
 
 
-def _threads() -> int:
-    import numba
-
-    return int(numba.get_num_threads())
-
-
-def _packing_function() -> Callable | None:
-    """StereoMatches packing when the ROS workspace is sourced, else None."""
+def _stage_function() -> Callable:
+    """The correlation stage as correlation_node runs it: a StereoPair message in, StereoMatches
+    out (decode, rectify, match, triangulate, pack) when the ROS workspace is sourced; without
+    it, the ROS-free part (rectify, match, triangulate) on arrays."""
     try:
         from std_msgs.msg import Header
-        from stereo_fuzzy_perception.nodes.conversions import stereo_matches_message
+        from stereo_fuzzy_perception.nodes.conversions import (
+            array_to_image,
+            calibration_to_camera_info,
+            stereo_matches_message,
+            stereo_pair_to_domain,
+        )
+
+        from stereo_fuzzy_msgs.msg import StereoPair
     except ImportError:
-        return None
+        def arrays_stage(left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
+                         pipeline: StereoMatchingPipeline) -> object:
+            return pipeline.process(left, right, calibration)
 
-    def pack(result, config: MatcherConfig) -> object:
-        return stereo_matches_message(Header(frame_id='left'), result.rectified, result.points,
-                                      config)
+        arrays_stage.__doc__ = 'rectify + match + triangulate on arrays (ROS not sourced)'
+        return arrays_stage
 
-    return pack
+    header = Header(frame_id='left_optical')
+    # The message is made once per pair, as a subscription receives it; the cache holds the
+    # images themselves, so that a later pair can never be taken for an earlier one.
+    pairs: list[tuple[np.ndarray, np.ndarray, StereoCalibration, object]] = []
+
+    def message_stage(left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
+                      pipeline: StereoMatchingPipeline) -> object:
+        cached = [entry[3] for entry in pairs
+                  if entry[0] is left and entry[1] is right and entry[2] is calibration]
+        if not cached:
+            cached.append(StereoPair(
+                header=header, left_image=array_to_image(left, 'mono8', header),
+                right_image=array_to_image(right, 'mono8', header),
+                left_info=calibration_to_camera_info(calibration.left, header),
+                right_info=calibration_to_camera_info(calibration.right, header)))
+            pairs.append((left, right, calibration, cached[0]))
+        raw_left, raw_right, raw_calibration = stereo_pair_to_domain(cached[0])
+        result = pipeline.process(raw_left, raw_right, raw_calibration)
+        return stereo_matches_message(header, result.rectified, result.points,
+                                      pipeline.config)
+
+    message_stage.__doc__ = ('StereoPair message in -> StereoMatches out: decode, rectify, '
+                             'match, triangulate, pack')
+    return message_stage
 
 
 def main() -> None:

@@ -5,11 +5,17 @@ read natively through --ros-args --params-file), homes the gantry, records the o
 plays the demo bag, and prints a table per object: ground truth, best point, error, the G-code
 lines sent and the gantry's final position. Writes a picture per object and exits non-zero if any
 object fails. Run it with scripts/demo.sh.
+
+A bag without ground truth (a real recording) is a regression run: every scene the chain decided
+is reported and pictured, a scene passes when it got a best point that the gantry reached, and
+`--compare REFERENCE_OUTPUTS_BAG` checks the best points against a reference run's
+(chain/regression.py).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -21,7 +27,15 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from chain.processes import REPO_ROOT, ProcessGroup, executable_path, wait_for
+from chain.processes import REPO_ROOT, ProcessGroup, executable_path, process_set, wait_for
+from chain.regression import (
+    DEFAULT_TOLERANCE_MM,
+    compare,
+    format_comparison,
+    scene_outcomes,
+    write_reference,
+)
+from chain.ros_domains import reserved_domain_id
 
 DEFAULT_BAG = REPO_ROOT / 'bags' / 'demo_scenes'
 DEFAULT_PARAMS = REPO_ROOT / 'chain' / 'demo_params.yaml'
@@ -84,6 +98,7 @@ class DemoRun:
 
     def __init__(self, bag: Path, params_file: Path, output_dir: Path, tolerance_mm: float,
                  rate: float, timeout_s: float, quiet: bool = False) -> None:
+        self.labelled = True  # known once the bag has played: did any ground truth arrive?
         self.bag = bag
         self.params_file = params_file
         self.output_dir = output_dir
@@ -104,17 +119,17 @@ class DemoRun:
         """Start the simulated gantry, the driver and the three perception nodes."""
         for log in (self.sent_log, self.received_log):
             log.unlink(missing_ok=True)
-        params = ['--params-file', str(self.params_file)]
-        self.group.start_node('cartesian_3p_driver', 'fake_gantry', *params,
-                              '-p', f'link_path:={self.gantry_link}',
-                              '-p', f'received_lines_log:={self.received_log}')
-        wait_for(self.gantry_link.exists, 30.0, 'the simulated gantry pseudo-terminal',
-                 watch=self.group)
-        self.group.start_node('cartesian_3p_driver', 'gantry_driver_node', *params,
-                              '-p', f'port:={self.gantry_link}',
-                              '-p', f'sent_lines_log:={self.sent_log}')
-        for executable in ('stereo_sync_node', 'correlation_node', 'fuzzy_best_point_node'):
-            self.group.start_node('stereo_fuzzy_perception', executable, *params)
+        # The processes of chain_without_hardware.launch.py, from the same description.
+        processes = process_set('chain_without_hardware')
+        arguments = processes.argument_values({'port': str(self.gantry_link),
+                                               'params_file': str(self.params_file)})
+        extra = {'fake_gantry': ['-p', f'received_lines_log:={self.received_log}'],
+                 'gantry_driver_node': ['-p', f'sent_lines_log:={self.sent_log}']}
+        for process in processes.processes:
+            self.group.start_described(process, arguments, *extra.get(process.name, ()))
+            if process.name == 'fake_gantry':
+                wait_for(self.gantry_link.exists, 30.0, 'the simulated gantry pseudo-terminal',
+                         watch=self.group)
 
     def start_recorder(self) -> Path:
         """Record the chain's outputs into a bag under the output folder."""
@@ -165,17 +180,27 @@ class DemoRun:
             self._progress('homing the gantry')
             home = node.create_client(Trigger, 'gantry/home')
             wait_for(home.service_is_ready, 30.0, 'the gantry/home service', spin, self.group)
-            future = home.call_async(Trigger.Request())
-            wait_for(future.done, 120.0, 'homing to finish', spin, self.group)
-            if not future.result().success:
-                raise RuntimeError(f'homing failed: {future.result().message}')
+            # The driver may report the controller's state a moment before its link accepts
+            # requests ('not connected'): ask again until homing succeeds or time runs out.
+            deadline = time.monotonic() + 60.0
+            while True:
+                future = home.call_async(Trigger.Request())
+                wait_for(future.done, 120.0, 'homing to finish', spin, self.group)
+                if future.result().success:
+                    break
+                if time.monotonic() >= deadline:
+                    raise RuntimeError(f'homing failed: {future.result().message}')
+                pause_until = time.monotonic() + 0.5
+                while time.monotonic() < pause_until:
+                    spin(0.05)
             wait_for(monitor.gantry_ready, 60.0, 'the gantry to be Idle after homing', spin,
                      self.group)
             self.lines_sent_at_start = monitor.latest_gantry_state.lines_sent
             self.start_recorder()
             # correlation_node and fuzzy_best_point_node create their endpoints only once their
-            # numba kernels are compiled (10-30 s on a fresh checkout). A scene played before
-            # every link of the chain exists is lost at the first missing link.
+            # numba kernels are compiled (cold-start times: the README's benchmark table). A
+            # scene played before every link of the chain exists is lost at the first missing
+            # link.
             try:
                 wait_for(lambda: not missing_links(node), 180.0,
                          'every link of the chain (kernels compiled)', spin, self.group)
@@ -192,8 +217,7 @@ class DemoRun:
                 raise TimeoutError(f'the bag did not finish playing in {self.timeout_s:.0f} s')
             if player.process.returncode != 0:
                 raise RuntimeError(f'bag play failed:\n{player.output()[-3000:]}')
-            expected = [record for record in monitor.scenes.values()
-                        if record.ground_truth is not None]
+            expected = self._scenes(monitor)
             try:
                 wait_for(lambda: self._all_settled(monitor, expected), self.settle_timeout_s,
                          'the last decisions and moves', spin, self.group)
@@ -209,6 +233,16 @@ class DemoRun:
             print(file=sys.stderr)
         self.exit_codes = exit_codes
         return self._verdicts(monitor)
+
+    def _scenes(self, monitor: object) -> list:
+        """Return the scenes to judge, in stamp order: those with ground truth, or for a bag
+        without any, every scene that reached the chain (a pair or a decision)."""
+        labelled = [record for record in monitor.scenes.values()
+                    if record.ground_truth is not None]
+        self.labelled = bool(labelled)
+        scenes = labelled or [record for record in monitor.scenes.values()
+                              if record.pair is not None or record.decision is not None]
+        return sorted(scenes, key=lambda record: record.stamp_ns)
 
     def _commanded(self, best_point: np.ndarray) -> np.ndarray:
         offset = float(self.params.get('gantry_driver_node', {}).get('ros__parameters', {})
@@ -230,43 +264,52 @@ class DemoRun:
 
         sent = [_strip_log_prefix(line) for line in _read_lines(self.sent_log)]
         results = []
-        scenes = sorted((record for record in monitor.scenes.values()
-                         if record.ground_truth is not None), key=lambda r: r.stamp_ns)
         # Targets run one after another, so the lines sent between reaching the previous target
         # and reaching this one are this target's lines.
         lines_before = self.lines_sent_at_start
-        for index, record in enumerate(scenes):
+        for index, record in enumerate(self._scenes(monitor)):
             result, lines_before = self._verdict(index, record, monitor, sent, lines_before)
             results.append(result)
-            draw_scene(record, self.params, self.output_dir / f'object_{index:02d}.png')
+            reached = (None if record.best_point is None else monitor.idle_at(
+                self._commanded(record.best_point), 0.0005, record.gantry_index_at_best_point))
+            until = reached.index if reached is not None else record.gantry_index_at_best_point
+            try:
+                draw_scene(record, self.params, self.output_dir / f'object_{index:02d}.png',
+                           f'scene {index}', monitor.gantry_path(until))
+            except Exception as error:  # a picture must not lose the run's verdicts
+                print(f'[demo] no picture of scene {index}: {error!r}', file=sys.stderr)
         return results
 
     def _verdict(self, index: int, record: object, monitor: object, sent: list[str],
                  lines_before: int) -> tuple[ObjectResult, int]:
         truth = record.ground_truth
+        truth_list = None if truth is None else truth.tolist()
         if record.best_point is None:
             reason = (record.decision.status if record.decision is not None
                       else 'no decision (pair dropped, see the logs)')
-            return ObjectResult(index, record.stamp_ns, truth.tolist(), None, None, None, None,
+            return ObjectResult(index, record.stamp_ns, truth_list, None, None, None, None,
                                 None, None, [], f'no best point: {reason}', False), lines_before
-        error = record.best_point - truth
         commanded = self._commanded(record.best_point)
         reached = monitor.idle_at(commanded, 0.0005, record.gantry_index_at_best_point)
         lines, lines_after = ([], lines_before) if reached is None else self._move_lines(
             commanded, sent, lines_before)
-        error_mm = float(np.linalg.norm(error) * 1000)
-        passed = error_mm <= self.tolerance_mm and reached is not None
+        error_mm = horizontal_mm = vertical_mm = None
+        if truth is not None:
+            error = record.best_point - truth
+            error_mm = float(np.linalg.norm(error) * 1000)
+            horizontal_mm = float(np.linalg.norm(error[:2]) * 1000)
+            vertical_mm = float(abs(error[2]) * 1000)
+        passed = reached is not None and (error_mm is None or error_mm <= self.tolerance_mm)
         if reached is None:
             status = f'gantry did not reach the best point ({monitor.driver_summary(record)})'
-        elif error_mm > self.tolerance_mm:
+        elif error_mm is not None and error_mm > self.tolerance_mm:
             status = f'error above {self.tolerance_mm} mm'
         else:
-            status = 'ok'
+            status = 'ok' if truth is not None else 'ok (no ground truth: reached)'
         result = ObjectResult(
-            index, record.stamp_ns, truth.tolist(), record.best_point.tolist(), error_mm,
-            float(np.linalg.norm(error[:2]) * 1000), float(abs(error[2]) * 1000),
-            commanded.tolist(), None if reached is None else reached.world_position.tolist(),
-            lines, status, passed)
+            index, record.stamp_ns, truth_list, record.best_point.tolist(), error_mm,
+            horizontal_mm, vertical_mm, commanded.tolist(),
+            None if reached is None else reached.world_position.tolist(), lines, status, passed)
         return result, lines_after
 
     def _move_lines(self, commanded: np.ndarray, sent: list[str],
@@ -298,7 +341,8 @@ class DemoRun:
             print(f'[demo] {text}', file=sys.stderr, flush=True)
 
     def _progress_scenes(self, monitor: object) -> None:
-        seen = sum(1 for record in monitor.scenes.values() if record.ground_truth is not None)
+        seen = sum(1 for record in monitor.scenes.values()
+                   if record.ground_truth is not None or record.pair is not None)
         decided = sum(1 for record in monitor.scenes.values() if record.decision is not None)
         state = monitor.latest_gantry_state.state if monitor.latest_gantry_state else '?'
         self._progress(f'scenes played {seen}, decided {decided}, gantry {state}')
@@ -323,7 +367,7 @@ def format_table(results: list[ObjectResult]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the demo; return 0 when every object passed."""
+    """Run the demo; return 0 when every object passed (and matched the reference, if any)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--bag', type=Path, default=DEFAULT_BAG, help='bag to play')
     parser.add_argument('--params', type=Path, default=DEFAULT_PARAMS,
@@ -336,24 +380,62 @@ def main(argv: list[str] | None = None) -> int:
                         help='bag playback rate (the bags hold a scene a second)')
     parser.add_argument('--timeout', type=float, default=600.0,
                         help='longest time the bag may take to play [s]')
+    parser.add_argument('--compare', type=Path, metavar='REFERENCE_OUTPUTS_BAG',
+                        help="compare the best points with a reference run's outputs bag")
+    parser.add_argument('--compare-tolerance-mm', type=float, default=DEFAULT_TOLERANCE_MM,
+                        help='largest distance from the reference best point that passes [mm]')
+    parser.add_argument('--write-reference', type=Path, metavar='PATH',
+                        help="write this run's best points and decisions as a reference bag")
     arguments = parser.parse_args(argv)
+    if arguments.write_reference is not None and arguments.write_reference.exists():
+        parser.error(f'--write-reference {arguments.write_reference} exists; remove it first')
+    if arguments.compare is not None and not arguments.compare.exists():
+        parser.error(f'--compare {arguments.compare} does not exist')
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    run = DemoRun(arguments.bag, arguments.params, arguments.output, arguments.tolerance_mm,
-                  arguments.rate, arguments.timeout)
-    results = run.run()
+    with contextlib.ExitStack() as stack:
+        if 'ROS_DOMAIN_ID' not in os.environ:
+            # A ROS domain of its own: another chain on this machine (a second demo, a test)
+            # would otherwise feed its best points and gantry states into this run.
+            os.environ['ROS_DOMAIN_ID'] = str(stack.enter_context(reserved_domain_id()))
+        run = DemoRun(arguments.bag, arguments.params, arguments.output,
+                      arguments.tolerance_mm, arguments.rate, arguments.timeout)
+        results = run.run()
     table = format_table(results)
     print(table)
     (arguments.output / 'results.json').write_text(
         json.dumps([asdict(result) for result in results], indent=2))
-    (arguments.output / 'results.md').write_text(table + '\n')
     failed = [result for result in results if not result.passed]
-    print(f'\n{len(results) - len(failed)} of {len(results)} objects passed '
+    what = 'objects' if run.labelled else 'scenes (no ground truth: best point reached)'
+    print(f'\n{len(results) - len(failed)} of {len(results)} {what} passed '
           f'(tolerance {arguments.tolerance_mm} mm); pictures, logs and the outputs bag are in '
           f'{arguments.output}')
+    report = table + '\n'
+    outputs_bag = arguments.output / 'outputs_bag'
+    mismatched = 0
+    if arguments.compare is not None:
+        rows = compare(scene_outcomes(arguments.compare), scene_outcomes(outputs_bag),
+                       arguments.compare_tolerance_mm)
+        comparison = format_comparison(rows)
+        mismatched = sum(not row.passed for row in rows) + (0 if rows else 1)
+        print(f'\ncompared with {arguments.compare}:\n{comparison}\n'
+              f'{len(rows) - sum(not row.passed for row in rows)} of {len(rows)} scenes match '
+              f'the reference (tolerance {arguments.compare_tolerance_mm:g} mm)')
+        report += f'\n## Compared with {arguments.compare}\n\n{comparison}\n'
+    (arguments.output / 'results.md').write_text(report)
+    if arguments.write_reference is not None:
+        def shown(path: Path) -> str:  # repository paths as the README writes them
+            absolute = path.resolve()
+            return str(absolute.relative_to(REPO_ROOT) if absolute.is_relative_to(REPO_ROOT)
+                       else path)
+
+        count = write_reference(outputs_bag, arguments.write_reference,
+                                f'scripts/demo.sh --bag {shown(arguments.bag)} '
+                                f'--write-reference {shown(arguments.write_reference)}')
+        print(f'wrote {count} best points and decisions into {arguments.write_reference}')
     if not results:
         print('no object was seen: did the bag play?', file=sys.stderr)
         return 1
-    return 1 if failed else 0
+    return 1 if failed or mismatched else 0
 
 
 if __name__ == '__main__':

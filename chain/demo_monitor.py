@@ -13,6 +13,7 @@ import numpy as np
 from geometry_msgs.msg import PointStamped
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from stereo_msgs.msg import DisparityImage
 from visualization_msgs.msg import Marker
 
 from stereo_fuzzy_msgs.msg import FuzzyDecision, GantryState, StereoMatches, StereoPair
@@ -45,6 +46,7 @@ class SceneRecord:
     best_point_order: int = -1
     gantry_index_at_best_point: int = 0
     object_marker: Marker | None = None
+    disparity: DisparityImage | None = None
 
 
 @dataclass
@@ -80,6 +82,8 @@ class DemoMonitor:
             node.create_subscription(StereoPair, 'stereo/pair', self._on_pair, RELIABLE)
             node.create_subscription(StereoMatches, 'stereo/matches', self._on_matches,
                                      RELIABLE)
+            node.create_subscription(DisparityImage, 'stereo/disparity', self._on_disparity,
+                                     RELIABLE)
 
     def scene(self, stamp_ns: int) -> SceneRecord:
         """Return the record of the scene with this stamp, creating it if new."""
@@ -106,6 +110,15 @@ class DemoMonitor:
 
     def _on_matches(self, msg: StereoMatches) -> None:
         self.scene(stamp_key(msg.header)).matches = msg
+
+    def _on_disparity(self, msg: DisparityImage) -> None:
+        self.scene(stamp_key(msg.header)).disparity = msg
+
+    def gantry_path(self, until: int | None = None) -> np.ndarray:
+        """Return the gantry's reported world positions [m] (N x 3), up to report `until`."""
+        samples = self.gantry if until is None else self.gantry[:until + 1]
+        positions = [s.world_position for s in samples if s.connected]
+        return np.array(positions) if positions else np.zeros((0, 3))
 
     def _on_gantry_state(self, msg: GantryState) -> None:
         self.latest_gantry_state = msg

@@ -12,4 +12,14 @@ source "$_sf_root/ros2_ws/install/setup.bash"
 export RMW_IMPLEMENTATION=${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}
 export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
 export SF_ROOT="$_sf_root"
+# Every executable the READMEs name, callable by name: colcon installs them in
+# install/<package>/lib/<package> (what `ros2 run <package> <executable>` starts), and
+# scripts/bin holds launch_chain, this repository's stand-in for `ros2 launch`.
+for _sf_dir in "$_sf_root/scripts/bin" "$_sf_root"/ros2_ws/install/*/lib/*; do
+  [ -d "$_sf_dir" ] || continue
+  case "$_sf_dir" in */lib/python*) continue ;; esac
+  case ":$PATH:" in *":$_sf_dir:"*) ;; *) PATH="$_sf_dir:$PATH" ;; esac
+done
+export PATH
+unset _sf_dir
 unset _sf_root _sf_nounset

@@ -24,6 +24,8 @@ NODE_PARAMETER_MODULES = {
     'stereo_sync_node': 'stereo_fuzzy_perception.nodes.stereo_sync_parameters',
     'correlation_node': 'stereo_fuzzy_perception.nodes.correlation_parameters',
     'fuzzy_best_point_node': 'stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters',
+    'rig_transforms_node': 'stereo_fuzzy_perception.nodes.rig_transforms_parameters',
+    'stereo_camera_node': 'stereo_fuzzy_perception.nodes.stereo_camera_parameters',
     'gantry_driver_node': 'cartesian_3p_driver.gantry_driver_parameters',
     'fake_gantry': 'cartesian_3p_driver.fake_gantry_parameters',
 }

@@ -19,6 +19,8 @@ NODE_MODULES = [
     'stereo_fuzzy_perception.nodes.stereo_sync_node',
     'stereo_fuzzy_perception.nodes.correlation_node',
     'stereo_fuzzy_perception.nodes.fuzzy_best_point_node',
+    'stereo_fuzzy_perception.nodes.rig_transforms_node',
+    'stereo_fuzzy_perception.nodes.stereo_camera_node',
 ]
 FORBIDDEN_IN_RUNTIME = ('pybullet', 'stereo_fuzzy_perception.simulation',
                         'stereo_fuzzy_perception.bag')

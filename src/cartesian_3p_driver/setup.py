@@ -12,6 +12,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/urdf', glob('urdf/*.urdf')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
@@ -23,6 +24,7 @@ setup(
         'console_scripts': [
             'gantry_driver_node = cartesian_3p_driver.gantry_driver_node:main',
             'fake_gantry = cartesian_3p_driver.fake_gantry:main',
+            'gantry = cartesian_3p_driver.gantry_command:main',
         ],
     },
 )

@@ -12,13 +12,21 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
+        # launch files and the process description they (and chain/processes.py) read
+        ('share/' + package_name + '/launch',
+         glob('launch/*.launch.py') + glob('launch/*.yaml')),
     ],
-    package_data={package_name: ['data/*.yaml', 'data/*.npz']},
-    # The matcher's C kernel (see its header comment). -ffp-contract=off: no fused multiply-add,
-    # so the vectorised and the scalar loops round alike and results do not depend on the CPU.
+    package_data={package_name: ['data/*.yaml', 'data/*.npz', 'core/matching/*.pyi']},
+    # The matcher's kernel, the whole matcher behind one Python function (see its header
+    # comment). -ffp-contract=off: no fused multiply-add, so the vectorised and the scalar loops
+    # round alike and results do not depend on the CPU. -fno-math-errno, -fno-trapping-math:
+    # sqrt and branch-free selects vectorise (neither changes a result: errno and FP exception
+    # flags are never read). -pthread: its worker threads.
     ext_modules=[Extension(package_name + '.core.matching._window_matcher_kernel',
                            sources=[package_name + '/core/matching/window_matcher_kernel.c'],
-                           extra_compile_args=['-O3', '-ffp-contract=off'])],
+                           extra_compile_args=['-O3', '-ffp-contract=off', '-fno-math-errno',
+                                               '-fno-trapping-math', '-pthread'],
+                           extra_link_args=['-pthread'])],
     install_requires=['setuptools'],
     zip_safe=False,
     maintainer='stereo-fuzzy engineering',
@@ -30,6 +38,9 @@ setup(
             'stereo_sync_node = stereo_fuzzy_perception.nodes.stereo_sync_node:main',
             'correlation_node = stereo_fuzzy_perception.nodes.correlation_node:main',
             'fuzzy_best_point_node = stereo_fuzzy_perception.nodes.fuzzy_best_point_node:main',
+            'rig_transforms_node = stereo_fuzzy_perception.nodes.rig_transforms_node:main',
+            'stereo_camera_node = stereo_fuzzy_perception.nodes.stereo_camera_node:main',
+            'rig_calibration = stereo_fuzzy_perception.rig.rig_calibration:main',
             'bag = stereo_fuzzy_perception.bag.bag_tool:main',
             'render_scenes = stereo_fuzzy_perception.simulation.scene_bag_writer:main',
         ],

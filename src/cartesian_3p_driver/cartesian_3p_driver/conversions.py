@@ -6,12 +6,13 @@ from collections.abc import Sequence
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point, PointStamped
+from geometry_msgs.msg import Point, PointStamped, TransformStamped
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
 from stereo_fuzzy_msgs.action import MoveTo
 from stereo_fuzzy_msgs.msg import GantryState
+from tf2_msgs.msg import TFMessage
 
 from .gcode import Vector3
 from .link_events import GantrySnapshot, MoveFeedback, MoveFinished
@@ -68,6 +69,20 @@ def to_joint_state(snapshot: GantrySnapshot, joint_names: Sequence[str],
         return None
     return JointState(header=Header(stamp=stamp), name=list(joint_names),
                       position=[float(value) for value in snapshot.world_position_m])
+
+
+def to_tool_transform(snapshot: GantrySnapshot, world_frame: str, tool_frame: str,
+                      stamp: Time) -> TFMessage | None:
+    """Return /tf with world_frame -> tool_frame at the tool's world position [m], if known."""
+    if snapshot.world_position_m is None:
+        return None
+    transform = TransformStamped(header=Header(stamp=stamp, frame_id=world_frame),
+                                 child_frame_id=tool_frame)
+    x, y, z = (float(value) for value in snapshot.world_position_m)
+    transform.transform.translation.x, transform.transform.translation.y = x, y
+    transform.transform.translation.z = z
+    transform.transform.rotation.w = 1.0
+    return TFMessage(transforms=[transform])
 
 
 def to_diagnostics(snapshot: GantrySnapshot, name: str, stamp: Time) -> DiagnosticArray:

@@ -42,6 +42,7 @@ class FakeGantry(Node):
             simulator.options.reply_delay_s = settings.reply_delay_s
             simulator.options.boot_delay_s = settings.boot_delay_s
             simulator.options.vanish_on_line = settings.vanish_on_line
+            simulator.options.vanish_every_lines = settings.vanish_every_lines
             simulator.options.vanish_duration_s = settings.vanish_duration_s
             simulator.controller.set_faults(settings.faults())
 

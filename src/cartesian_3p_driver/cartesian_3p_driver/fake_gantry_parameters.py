@@ -59,6 +59,12 @@ class FakeGantrySettings:
     garble_reply_to_line: int = parameter(
         0, 'Fault injection: answer the n-th received line with a corrupt reply (0 = off)',
         0, 1000000)
+    drop_reply_every_lines: int = parameter(
+        0, 'Fault injection: never answer every n-th received line (n, 2n, ...; 0 = off)',
+        0, 1000000)
+    garble_reply_every_lines: int = parameter(
+        0, 'Fault injection: answer every n-th received line with a corrupt reply (n, 2n, ...; '
+        '0 = off)', 0, 1000000)
     refuse_line_pattern: str = parameter(
         '', 'Fault injection: answer lines matching this regular expression with '
         "error:refuse_error_code ('' = off)")
@@ -74,6 +80,9 @@ class FakeGantrySettings:
     vanish_on_line: int = parameter(
         0, 'Fault injection: close the pty right after receiving the n-th line, before '
         'answering it (0 = never; once)', 0, 1000000)
+    vanish_every_lines: int = parameter(
+        0, 'Fault injection: vanish likewise after every n-th received line (n, 2n, ...; 0 = '
+        'never)', 0, 1000000)
     vanish_duration_s: float = parameter(
         1.0, 'Fault injection: time until the pty comes back at the same link_path [s]',
         0.0, 60.0)
@@ -91,6 +100,8 @@ class FakeGantrySettings:
         return FaultInjection(
             drop_reply_to_line=self.drop_reply_to_line,
             garble_reply_to_line=self.garble_reply_to_line,
+            drop_reply_every_lines=self.drop_reply_every_lines,
+            garble_reply_every_lines=self.garble_reply_every_lines,
             refuse_line_pattern=self.refuse_line_pattern,
             refuse_error_code=self.refuse_error_code, alarm_axis=self.alarm_axis,
             alarm_at_mm=self.alarm_at_mm, alarm_code=self.alarm_code)
@@ -100,7 +111,8 @@ class FakeGantrySettings:
         return SimulatorOptions(
             link_path=self.link_path, tcp_port=self.tcp_port, time_scale=self.time_scale,
             reply_delay_s=self.reply_delay_s, boot_delay_s=self.boot_delay_s,
-            vanish_on_line=self.vanish_on_line, vanish_duration_s=self.vanish_duration_s,
+            vanish_on_line=self.vanish_on_line, vanish_every_lines=self.vanish_every_lines,
+            vanish_duration_s=self.vanish_duration_s,
             received_lines_log=self.received_lines_log)
 
     def problem(self) -> str | None:

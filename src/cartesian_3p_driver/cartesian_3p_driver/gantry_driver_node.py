@@ -29,6 +29,7 @@ from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 
 from stereo_fuzzy_msgs.action import MoveTo
 from stereo_fuzzy_msgs.msg import GantryState
+from tf2_msgs.msg import TFMessage
 
 from . import qos
 from .conversions import (
@@ -38,6 +39,7 @@ from .conversions import (
     to_gantry_state,
     to_joint_state,
     to_result,
+    to_tool_transform,
 )
 from .gantry_driver_parameters import GantryDriverSettings
 from .gcode import (
@@ -94,6 +96,8 @@ class GantryDriverNode(Node):
 
         self._state_pub = self.create_publisher(GantryState, 'gantry/state', qos.DRIVER_STATE)
         self._joint_pub = self.create_publisher(JointState, 'joint_states', qos.JOINT_STATES)
+        self._tf_pub = (self.create_publisher(TFMessage, '/tf', qos.TF)
+                        if settings.tool_frame else None)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, '/diagnostics',
                                                       qos.DIAGNOSTICS)
         group = ReentrantCallbackGroup()
@@ -186,6 +190,10 @@ class GantryDriverNode(Node):
         joints = to_joint_state(self._snapshot, self.settings.joint_names, stamp)
         if joints is not None:
             self._joint_pub.publish(joints)
+        tool = to_tool_transform(self._snapshot, self.settings.world.world_frame,
+                                 self.settings.tool_frame, stamp)
+        if self._tf_pub is not None and tool is not None:
+            self._tf_pub.publish(tool)
 
     def _publish_diagnostics(self) -> None:
         self._diagnostics_pub.publish(to_diagnostics(

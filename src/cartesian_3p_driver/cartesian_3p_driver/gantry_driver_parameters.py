@@ -34,6 +34,9 @@ class GantryDriverSettings:
         'socket://127.0.0.1:23000', 'Serial device path or pyserial URL (/dev/ttyUSB0, '
         'socket://host:port, a fake_gantry link_path)', read_only=True)
     baud: int = parameter(115200, 'Serial baud rate [bit/s]', 1200, 2000000, read_only=True)
+    tool_frame: str = parameter(
+        'tool', "Frame of the tool on /tf: world_frame -> tool_frame at the reported position ('' "
+        '= no /tf, e.g. when robot_state_publisher runs the URDF)', read_only=True)
     joint_names: tuple[str, str, str] = parameter(
         ('gantry_x_joint', 'gantry_y_joint', 'gantry_z_joint'),
         'Names of the three prismatic joints published on joint_states', read_only=True)

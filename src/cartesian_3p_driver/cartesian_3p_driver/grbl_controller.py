@@ -105,6 +105,8 @@ class FaultInjection:
     Attributes:
         drop_reply_to_line: Never answer this line (it still runs); 0 = off.
         garble_reply_to_line: Answer this line with a corrupt reply; 0 = off.
+        drop_reply_every_lines: Never answer every n-th line (lines n, 2n, ...); 0 = off.
+        garble_reply_every_lines: Answer every n-th line with a corrupt reply; 0 = off.
         refuse_line_pattern: Answer lines matching this regex with `refuse_error_code`.
         refuse_error_code: The error:N for refused lines.
         alarm_axis: 'x', 'y' or 'z': raise `alarm_code` once when that axis crosses
@@ -115,6 +117,8 @@ class FaultInjection:
 
     drop_reply_to_line: int = 0
     garble_reply_to_line: int = 0
+    drop_reply_every_lines: int = 0
+    garble_reply_every_lines: int = 0
     refuse_line_pattern: str = ''
     refuse_error_code: int = 20
     alarm_axis: str = ''
@@ -131,6 +135,11 @@ class _Move:
 @dataclass
 class _Dwell:
     seconds: float
+
+
+def _every(number: int, period: int) -> bool:
+    """Return True when line `number` is a multiple of `period` (0 = never)."""
+    return period > 0 and number % period == 0
 
 
 _WORD_RE = re.compile(r'([A-Z])([-+]?(?:\d+\.?\d*|\.\d+))?')
@@ -384,9 +393,11 @@ class GrblController:
     # -- lines --------------------------------------------------------------------------------
 
     def _reply(self, number: int, text: str) -> None:
-        if number == self.faults.drop_reply_to_line:
+        faults = self.faults
+        if number == faults.drop_reply_to_line or _every(number, faults.drop_reply_every_lines):
             return
-        if number == self.faults.garble_reply_to_line:
+        if number == faults.garble_reply_to_line \
+                or _every(number, faults.garble_reply_every_lines):
             text = GARBLED_REPLY
         self.output.append(text)
 

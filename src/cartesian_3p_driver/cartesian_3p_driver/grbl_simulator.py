@@ -40,6 +40,8 @@ class SimulatorOptions:
         boot_delay_s: Time from a host opening the port to the banner [s].
         vanish_on_line: Close the pty (and TCP client) right after receiving this line,
             before answering it, counted from the start (0 = never); one-shot.
+        vanish_every_lines: Vanish likewise after every n-th received line (lines n, 2n, ...;
+            0 = never): a controller that keeps disappearing, for soak runs.
         vanish_duration_s: Time until a new pty (same link_path) appears [s].
         received_lines_log: Append every received line to this file ('' = off).
     """
@@ -50,6 +52,7 @@ class SimulatorOptions:
     reply_delay_s: float = 0.0
     boot_delay_s: float = 0.05
     vanish_on_line: int = 0
+    vanish_every_lines: int = 0
     vanish_duration_s: float = 1.0
     received_lines_log: str = ''
 
@@ -180,8 +183,10 @@ class GrblSimulator:
         if self._lines_log is not None:
             self._lines_log.write(line + '\n')
             self._lines_log.flush()
-        if self.options.vanish_on_line and \
-                self.controller.lines_received == self.options.vanish_on_line:
+        number = self.controller.lines_received
+        every = self.options.vanish_every_lines
+        if (self.options.vanish_on_line and number == self.options.vanish_on_line) \
+                or (every > 0 and number % every == 0):
             self._vanish_requested = True
 
     def _host_connected(self) -> bool:

@@ -5,6 +5,7 @@
   gets the current state at once.
 - Joint states: reliable, keep last 10 (what robot_state_publisher expects).
 - Diagnostics: reliable, keep last 10, as diagnostic_updater publishes them.
+- /tf: reliable, keep last 100, as tf2_ros' TransformBroadcaster.
 """
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -19,6 +20,10 @@ DRIVER_STATE = QoSProfile(
 
 JOINT_STATES = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE)
+
+TF = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE)
 
 DIAGNOSTICS = QoSProfile(

@@ -102,6 +102,11 @@ class SessionRequests(SessionCore):
         if dropped:
             self._log('warn', f'gantry link: dropped {len(dropped)} queued line(s)')
         self._fail_all_moves(reason)
+        if self._done_when_ready is not None:
+            # A home/unlock whose $H/$X succeeded but whose preamble failed: answer it now.
+            done, self._done_when_ready = self._done_when_ready, None
+            self._finished(replace(done, success=False,
+                                   message=f'{done.message}, but then {reason}'))
         if stop_motion and self._streamer.in_flight and self._stop is None:
             # Character counting: lines already in Grbl's buffer would still run.
             self._begin_stop(f'fault: {reason}', now)

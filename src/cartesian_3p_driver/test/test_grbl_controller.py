@@ -179,6 +179,15 @@ def test_faults_drop_garble_and_refuse_replies():
     assert drain(controller) == ['o\ufffdk', 'error:33', 'ok']
 
 
+def test_faults_every_n_lines_repeat_for_the_whole_run():
+    controller = make(drop_reply_every_lines=3, garble_reply_every_lines=4)
+    drain(controller)
+    controller.receive(b'G21\n' * 12, 0.0)
+    controller.advance(0.1)
+    # Lines 3, 6, 9, 12 unanswered; 4 and 8 garbled (12 is dropped first).
+    assert drain(controller) == ['ok', 'ok', 'o\ufffdk', 'ok', 'ok', 'o\ufffdk', 'ok', 'ok']
+
+
 def test_alarm_trip_point_stops_motion_and_reports_the_pin():
     controller = make(alarm_axis='x', alarm_at_mm=20.0, alarm_code=1)
     drain(controller)

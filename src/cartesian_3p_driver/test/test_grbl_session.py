@@ -155,6 +155,25 @@ def test_a_garbled_or_missing_reply_latches_a_fault_and_nothing_is_resent(
     assert_each_line_written_once(b)
 
 
+@pytest.mark.parametrize(('faults', 'reason'), [
+    (FaultInjection(garble_reply_to_line=3), 'unrecognised reply'),
+    (FaultInjection(drop_reply_to_line=3), "no reply to 'G21 G90 G94'"),
+])
+def test_home_is_answered_when_the_preamble_after_it_fails(bench, faults, reason):
+    # Lines: 1 $$, 2 $H, 3 the preamble that $H is waiting on (found by the soak benchmark:
+    # the request used to stay unanswered for good).
+    b = bench(faults=faults, settings=ControllerSettings(homing_enabled=True),
+              config=SessionConfig(reply_timeout_s=0.5))
+    b.open()
+    b.run_until(lambda: b.snapshot.state == 'Alarm', 'the controller booting in Alarm')
+    result = b.wait_finished(b.request('home'), limit_s=30.0)
+    assert not result.success and reason in result.message, result
+    assert b.written == ['$$', '$H'] + PREAMBLE
+    assert b.snapshot.fault and b.snapshot.homing_required
+    b.controller.set_faults(FaultInjection())
+    assert b.wait_finished(b.request('home')).success
+
+
 def test_a_reply_with_no_line_in_flight_latches_a_fault(bench):
     b = bench()
     b.open()

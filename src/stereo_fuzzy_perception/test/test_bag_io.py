@@ -170,7 +170,7 @@ def test_committed_bags_hold_every_object_type_with_consistent_ground_truth(name
     assert {t.name: t.message_count for t in info.topics} == {
         '/left/image_raw': scenes, '/right/image_raw': scenes, '/left/camera_info': scenes,
         '/right/camera_info': scenes, '/ground_truth/target': scenes,
-        '/ground_truth/object': scenes}
+        '/ground_truth/object': scenes, '/tf_static': 1}
     assert info.compression == 'zstd'
     # Each scene carries its own textures; 12 mono8 scenes compress to about 4.4 MB.
     assert info.size_bytes < 5_000_000, f'{name} grew to {info.size_bytes} bytes'
@@ -179,6 +179,11 @@ def test_committed_bags_hold_every_object_type_with_consistent_ground_truth(name
     targets, objects = [], []
     for message in read_messages(path):
         decoded = typestore.deserialize_cdr(message.data, message.msgtype)
+        if message.topic == '/tf_static':  # the rig, once: world -> left -> right
+            assert [(t.header.frame_id, t.child_frame_id) for t in decoded.transforms] == [
+                ('world', 'left_camera_optical_frame'),
+                ('left_camera_optical_frame', 'right_camera_optical_frame')]
+            continue
         stamp = decoded.header.stamp.sec * 1_000_000_000 + decoded.header.stamp.nanosec
         stamps.setdefault(stamp, set()).add(message.topic)
         if message.topic == '/left/image_raw':

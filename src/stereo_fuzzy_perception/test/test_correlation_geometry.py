@@ -1,6 +1,7 @@
 """Rectification (undoes the chapter's Eqs. 2-6) and triangulation (Eq. 1), correlation stage."""
 
 import math
+import weakref
 
 import cv2
 import numpy as np
@@ -198,3 +199,79 @@ def test_pipeline_points_do_not_depend_on_matching_only_the_strided_rows():
     np.testing.assert_array_equal(strided_rows.points.score, every_row.points.score)
     assert np.isnan(strided_rows.disparity_map.disparity[1::2]).all()
     assert np.isfinite(every_row.disparity_map.disparity[1::2]).any()
+
+
+def numpy_triangulation(disparity: np.ndarray, score: np.ndarray,
+                        calibration: StereoCalibration, stride: int) -> np.ndarray:
+    """Eq. 1 for rectified cameras over the valid pixels, row by row: (N, 7) float64 rows."""
+    left_p, right_p = np.asarray(calibration.left.P), np.asarray(calibration.right.P)
+    rows, columns = np.nonzero(np.isfinite(disparity[::stride, ::stride]))
+    rows, columns = rows * stride, columns * stride
+    d = disparity[rows, columns].astype(np.float64)
+    effective = d - (left_p[0, 2] - right_p[0, 2])
+    keep = effective > 0
+    rows, columns, d, effective = rows[keep], columns[keep], d[keep], effective[keep]
+    z = (left_p[0, 3] - right_p[0, 3]) / effective
+    x = ((columns - left_p[0, 2]) * z - left_p[0, 3]) / left_p[0, 0]
+    y = ((rows - left_p[1, 2]) * z - left_p[1, 3]) / left_p[1, 1]
+    xyz = np.stack([x, y, z], axis=1) @ np.asarray(calibration.left.R)
+    return np.column_stack([xyz, columns, rows, columns - d, score[rows, columns]])
+
+
+@pytest.mark.parametrize('stride', [1, 3])
+def test_triangulation_agrees_with_numpy_on_every_valid_pixel(stride):
+    rotation = rotation_y(math.radians(4.0))
+    calibration = rectified_pair_calibration(500.0, 160.0, 166.0, 0.1, rotation)
+    rng = np.random.default_rng(21)
+    disparity = rng.uniform(-10.0, 60.0, (HEIGHT, WIDTH)).astype(np.float32)
+    disparity[rng.random((HEIGHT, WIDTH)) < 0.3] = np.nan
+    score = rng.uniform(-1.0, 1.0, (HEIGHT, WIDTH)).astype(np.float32)
+    points = triangulate(disparity, score, calibration, stride)
+    expected = numpy_triangulation(disparity, score, calibration, stride)
+    assert len(points) == len(expected) > 1000
+    got = np.column_stack([points.xyz, points.u_left, points.v_left, points.u_right,
+                           points.score])
+    np.testing.assert_allclose(got, expected, rtol=1e-6, atol=1e-6)
+
+
+def test_the_point_cloud_holds_the_triangulated_points_whatever_their_layout():
+    # triangulated points are views of the cloud's rows (copied once); points made any other
+    # way are interleaved first: both clouds must read back the same points
+    from std_msgs.msg import Header
+    from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+    from stereo_fuzzy_perception.nodes.conversions import (
+        cloud_to_matched_points,
+        matched_points_to_cloud,
+    )
+
+    calibration = rectified_pair_calibration(500.0, 160.0, 160.0, 0.1, np.eye(3))
+    rng = np.random.default_rng(22)
+    disparity = rng.uniform(5.0, 40.0, (HEIGHT, WIDTH)).astype(np.float32)
+    disparity[rng.random((HEIGHT, WIDTH)) < 0.5] = np.nan
+    points = triangulate(disparity, np.ones_like(disparity), calibration, 2)
+    assert points.xyz.base is points.score.base  # the rows of one block
+    copies = MatchedPoints(points.xyz.copy(), points.u_left.copy(), points.v_left.copy(),
+                           points.u_right.copy(), points.score.copy())
+    header = Header(frame_id='left_optical')
+    cloud, cloud_of_copies = (matched_points_to_cloud(each, header) for each in (points, copies))
+    assert bytes(cloud.data) == bytes(cloud_of_copies.data)
+    assert len(cloud.data) == cloud.row_step == 28 * len(points) > 0
+    back = cloud_to_matched_points(cloud)
+    np.testing.assert_array_equal(back.xyz, points.xyz)
+    np.testing.assert_array_equal(back.u_right, points.u_right)
+
+
+def test_kept_points_are_never_overwritten_and_dropped_ones_are_recycled():
+    calibration = rectified_pair_calibration(500.0, 160.0, 160.0, 0.1, np.eye(3))
+    rng = np.random.default_rng(23)
+    first, second = (rng.uniform(5.0, 40.0, (HEIGHT, WIDTH)).astype(np.float32)
+                     for _ in range(2))
+    kept = triangulate(first, np.ones_like(first), calibration)
+    kept_xyz = kept.xyz.copy()
+    other = triangulate(second, np.ones_like(second), calibration)
+    np.testing.assert_array_equal(kept.xyz, kept_xyz)
+    block = weakref.ref(other.xyz.base)
+    del other
+    again = triangulate(second, np.ones_like(second), calibration)
+    assert again.xyz.base is block()  # nothing held the block: it was reused
+    np.testing.assert_array_equal(kept.xyz, kept_xyz)

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from stereo_fuzzy_perception.core.matching import _window_matcher_kernel as _kernel
 from stereo_fuzzy_perception.core.matching.window_matcher import (
     MatcherConfig,
     MatcherConfigError,
@@ -351,3 +352,84 @@ def test_row_step_below_one_is_refused():
     image = texture(20, 30).astype(np.uint8)
     with pytest.raises(ValueError, match='row_step 0'):
         match(image, image, MatcherConfig(window_size=3, disparity_range=4), row_step=0)
+
+
+def test_the_kernel_and_the_python_enum_agree_on_every_status_code():
+    # the C kernel defines the codes it writes; MatchStatus names them for Python
+    assert {status.name: status.value for status in MatchStatus} == _kernel.STATUS_CODES
+
+
+@pytest.mark.parametrize('threads', [1, 2, 3, 7])
+def test_any_thread_and_band_count_gives_the_same_result_on_8_bit_images(threads):
+    # 8-bit sums are exact: how the rows are split between bands and threads cannot show
+    left, right = shifted_pair(texture(70, 110, seed=18), 6.0)
+    config = MatcherConfig(window_size=7, disparity_range=20, uniqueness_ratio=0.05)
+    one = match(left, right, config, threads=1, band_count=1)
+    many = match(left, right, config, threads=threads)
+    np.testing.assert_array_equal(many.status, one.status)
+    np.testing.assert_array_equal(many.disparity, one.disparity)
+    np.testing.assert_array_equal(many.score, one.score)
+
+
+@pytest.mark.parametrize(('left_dtype', 'right_dtype'), [
+    (np.uint16, np.uint16), (np.float32, np.float64), (np.uint8, np.uint16), (np.int16, np.uint8),
+])
+def test_every_integer_and_float_dtype_agrees_with_the_slow_reference(left_dtype, right_dtype):
+    def scaled(image: np.ndarray, dtype: type) -> np.ndarray:
+        return (image.astype(np.float64) * 257).astype(dtype) if dtype == np.uint16 else \
+            image.astype(dtype)
+
+    left, right = shifted_pair(texture(40, 80, seed=19), 5.0)
+    left, right = scaled(left, left_dtype), scaled(right, right_dtype)
+    config = MatcherConfig(window_size=5, disparity_range=12)
+    fast, slow = match(left, right, config), reference_match(left, right, config)
+    assert np.mean(fast.status == slow.status) > 0.995
+    both = fast.valid & slow.valid
+    assert both.sum() > 0.5 * both.size
+    assert np.abs(fast.disparity[both] - slow.disparity[both]).max() < 1e-3
+
+
+def test_the_kernel_refuses_arrays_that_do_not_fit_its_call():
+    # one call with named arguments: a wrong buffer is an exception, never memory corruption
+    image = texture(20, 30).astype(np.uint8)
+    workspace = np.empty(_kernel.workspace_bytes(height=20, width=30, radius=1,
+                                                 disparity_range=4, threads=1), np.uint8)
+    outputs = [np.empty((20, 30), np.float32), np.empty((20, 30), np.float32),
+               np.empty((20, 30), np.uint8)]
+    settings_ = dict(zero_mean=True, radius=1, min_disparity=0, disparity_range=4,
+                     texture_threshold=0.5, min_score=0.3, uniqueness_ratio=0.0,
+                     lr_max_diff=1, subpixel=True, roi=(0, 0, 30, 20), row_step=1, bands=2,
+                     threads=1)
+    _kernel.correlate(image, image, *outputs, workspace, **settings_)
+    assert np.count_nonzero(outputs[2] == MatchStatus.VALID) > 0
+    with pytest.raises(TypeError, match='disparity'):
+        _kernel.correlate(image, image, outputs[2], outputs[1], outputs[2], workspace,
+                          **settings_)
+    with pytest.raises(TypeError, match='left'):
+        _kernel.correlate(image[:, ::2], image[:, ::2], *outputs, workspace, **settings_)
+    with pytest.raises(ValueError, match='workspace'):
+        _kernel.correlate(image, image, *outputs, workspace[:-1], **settings_)
+    with pytest.raises(ValueError, match='roi'):
+        _kernel.correlate(image, image, *outputs, workspace, **dict(settings_, roi=(5, 0, 30, 20)))
+    with pytest.raises(TypeError, match='threads'):
+        del settings_['threads']
+        _kernel.correlate(image, image, *outputs, workspace, **settings_)
+
+
+def test_python_threads_matching_at_once_get_the_results_of_matching_alone():
+    # the kernel releases the GIL; each Python thread has its own working memory
+    from concurrent.futures import ThreadPoolExecutor
+
+    pairs = [shifted_pair(texture(50, 90, seed=30 + index), 4.0 + index) for index in range(4)]
+    config = MatcherConfig(window_size=7, disparity_range=16)
+    alone = [match(left, right, config).disparity.copy() for left, right in pairs]
+
+    def match_repeatedly(index: int) -> list[np.ndarray]:
+        left, right = pairs[index]
+        return [match(left, right, config).disparity.copy() for _ in range(5)]
+
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        results = list(pool.map(match_repeatedly, range(4)))
+    for index, repeats in enumerate(results):
+        for disparity in repeats:
+            np.testing.assert_array_equal(disparity, alone[index])

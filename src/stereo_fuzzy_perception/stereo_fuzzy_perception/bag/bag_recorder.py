@@ -1,25 +1,28 @@
 """Record topics from the ROS graph into a new MCAP bag, as serialized bytes.
 
-What `ros2 bag record` does, for this project's needs: named topics or all of them (found as they
-appear), each message stamped with its receive time, the publishers' offered QoS in the
-metadata, custom types' definitions in the file. Stops on Ctrl-C, after N messages or after a
-duration, and always closes the bag so it stays readable.
+What `ros2 bag record` does, for this project's needs: named topics, a regex or all of them
+(found as they appear), minus exclusions; each message stamped with its receive time, the
+publishers' offered QoS in the metadata (or a QoS override file's), custom types' definitions
+in the file; files split by size or duration. Topics whose type is not installed are skipped
+with a warning. Stops on Ctrl-C, after N messages or after a duration, and always closes the
+bag so it stays readable.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
+from rclpy.qos import QoSProfile
 from rclpy.subscription import Subscription
 
-from stereo_fuzzy_perception.bag.bag_io import BagWriter, absolute_topic
+from stereo_fuzzy_perception.bag.bag_io import BagWriter, absolute_topic, select_topics
 from stereo_fuzzy_perception.bag.bag_qos import profile_to_bag_qos, recording_profile
-from stereo_fuzzy_perception.bag.message_types import import_message_class
+from stereo_fuzzy_perception.bag.message_types import MessageTypeError, import_message_class
 
 # Topics `--all` leaves out: every node's log and parameter events.
 EXCLUDED_FROM_ALL = ('/rosout', '/parameter_events')
@@ -31,20 +34,32 @@ class RecordOptions:
 
     Attributes:
         output: Bag directory to create.
-        topics: Topics to record (absolute names); ignored with all_topics.
+        topics: Topics to record (absolute names).
         all_topics: Record every topic that appears, except EXCLUDED_FROM_ALL and hidden ones.
+        regex: Also record the topics matching this regular expression.
+        exclude_topics: Never record these topics.
+        exclude_regex: Never record the topics matching this regular expression.
+        qos_overrides: {topic: QoS to subscribe with}, instead of what the publishers offer.
         max_messages: Stop after this many messages in total (None: no limit).
         duration_s: Stop after this long [s] (None: no limit).
         compression: 'zstd' (MCAP chunk compression) or 'none'.
+        max_bag_size: Split the bag into files of about this many bytes (0: one file).
+        max_bag_duration_s: Split the bag into files of this much time [s] (0: one file).
         discovery_period_s: How often to look for the topics on the graph [s].
     """
 
     output: Path
     topics: tuple[str, ...] = ()
     all_topics: bool = False
+    regex: str | None = None
+    exclude_topics: tuple[str, ...] = ()
+    exclude_regex: str | None = None
+    qos_overrides: dict[str, QoSProfile] = field(default_factory=dict)
     max_messages: int | None = None
     duration_s: float | None = None
     compression: str = 'zstd'
+    max_bag_size: int = 0
+    max_bag_duration_s: float = 0.0
     discovery_period_s: float = 0.1
 
 
@@ -60,16 +75,30 @@ class BagRecorder:
         self.node = node
         self.options = options
         self.wanted = {absolute_topic(name) for name in options.topics}
-        self.bag = BagWriter(options.output, compression=options.compression)
+        self.bag = BagWriter(options.output, compression=options.compression,
+                             max_bag_size=options.max_bag_size,
+                             max_bag_duration_ns=round(options.max_bag_duration_s * 1e9))
         self.subscriptions: dict[str, Subscription] = {}
+        self.skipped: set[str] = set()
         self.counts: dict[str, int] = {}
         self.message_count = 0
 
     def _wants(self, topic: str) -> bool:
-        if self.options.all_topics:
+        options = self.options
+        if topic in self.skipped:
+            return False
+        named = topic in self.wanted
+        if not named and options.all_topics:
             hidden = any(part.startswith('_') for part in topic.split('/'))
-            return topic not in EXCLUDED_FROM_ALL and not hidden
-        return topic in self.wanted
+            if topic in EXCLUDED_FROM_ALL or hidden:
+                return False
+        elif not named and options.regex is None:
+            return False
+        if options.all_topics:
+            return bool(select_topics([topic], None, None, options.exclude_topics,
+                                      options.exclude_regex))
+        return bool(select_topics([topic], self.wanted, options.regex, options.exclude_topics,
+                                  options.exclude_regex))
 
     def discover(self) -> list[str]:
         """Subscribe to wanted topics that have appeared; return the ones newly subscribed."""
@@ -86,13 +115,19 @@ class BagRecorder:
                           if info.topic_type == msgtype]
             if not publishers:
                 continue
-            message_class = import_message_class(msgtype)
-            self.bag.add_topic(topic, msgtype,
-                               offered_qos=[profile_to_bag_qos(p) for p in publishers])
+            try:
+                message_class = import_message_class(msgtype)
+                self.bag.add_topic(topic, msgtype,
+                                   offered_qos=[profile_to_bag_qos(p) for p in publishers])
+            except MessageTypeError:
+                self.skipped.add(topic)
+                self.node.get_logger().warning(
+                    f'not recording {topic}: its type {msgtype} is not installed here')
+                continue
             self.counts[topic] = 0
+            qos = self.options.qos_overrides.get(topic) or recording_profile(publishers)
             self.subscriptions[topic] = self.node.create_subscription(
-                message_class, topic, self._callback(topic), recording_profile(publishers),
-                raw=True)
+                message_class, topic, self._callback(topic), qos, raw=True)
             self.node.get_logger().info(f'recording {topic} ({msgtype})')
             added.append(topic)
         return added

@@ -21,7 +21,7 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-_REPO_INTERFACES = Path(__file__).resolve().parents[2]
+_REPO_INTERFACES = Path(__file__).resolve().parents[3]  # src/
 _TYPE_NAME = re.compile(r'^(?P<package>\w+)/(?P<kind>msg|srv|action)/(?P<name>\w+)$')
 
 

@@ -1,21 +1,24 @@
 """The one module that converts between ROS messages and this package's domain types.
 
 Images <-> numpy arrays (what cv_bridge does), CameraInfo <-> CameraCalibration,
-MatchedPoints <-> PointCloud2, and the fuzzy stage's BestPointDecision -> FuzzyDecision /
-PointStamped. Everything else in the
-package works on domain types.
+MatchedPoints <-> PointCloud2, the fuzzy stage's BestPointDecision -> FuzzyDecision /
+PointStamped / MarkerArray, and rig_pose.Transform <-> TransformStamped / TFMessage.
+Everything else in the package works on domain types.
 """
 
 from __future__ import annotations
 
+import array as array_module
+import sys
 from typing import TYPE_CHECKING
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, PointStamped
+from geometry_msgs.msg import Point, PointStamped, TransformStamped
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField, RegionOfInterest
 from std_msgs.msg import Header
 from stereo_msgs.msg import DisparityImage
+from visualization_msgs.msg import Marker, MarkerArray
 
 from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches, StereoPair
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration, StereoCalibration
@@ -26,6 +29,8 @@ from stereo_fuzzy_perception.core.image_encoding import (
     to_gray,
 )
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.rig_pose import Transform
+from tf2_msgs.msg import TFMessage
 
 if TYPE_CHECKING:  # annotations only: nodes that never decide need not import scipy
     from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointDecision
@@ -139,12 +144,19 @@ _FLOAT32_POINT = np.dtype([(name, '<f4') for name in MATCH_FIELDS])
 
 
 def matched_points_to_cloud(points: MatchedPoints, header: Header) -> PointCloud2:
-    """Pack matched points into an unordered PointCloud2 with float32 fields MATCH_FIELDS."""
-    records = np.empty(len(points), dtype=_FLOAT32_POINT)
-    records['x'], records['y'], records['z'] = points.xyz[:, 0], points.xyz[:, 1], points.xyz[:, 2]
-    records['u_left'], records['v_left'] = points.u_left, points.v_left
-    records['u_right'], records['score'] = points.u_right, points.score
-    cloud = PointCloud2()
+    """Pack matched points into an unordered PointCloud2 with float32 fields MATCH_FIELDS.
+
+    Points from triangulation.triangulate are already the cloud's rows: their bytes are copied
+    once into the message. Other points are interleaved first, column by column.
+    """
+    rows = _point_rows(points)
+    if rows is None:
+        rows = np.empty(len(points), dtype=_FLOAT32_POINT)
+        rows['x'], rows['y'], rows['z'] = points.xyz[:, 0], points.xyz[:, 1], points.xyz[:, 2]
+        rows['u_left'], rows['v_left'] = points.u_left, points.v_left
+        rows['u_right'], rows['score'] = points.u_right, points.score
+    # check_fields: the data setter then keeps the array.array it is given instead of copying it
+    cloud = PointCloud2(check_fields=True)
     cloud.header = header
     cloud.height, cloud.width = 1, len(points)
     cloud.fields = [
@@ -155,8 +167,36 @@ def matched_points_to_cloud(points: MatchedPoints, header: Header) -> PointCloud
     cloud.point_step = _FLOAT32_POINT.itemsize
     cloud.row_step = cloud.point_step * len(points)
     cloud.is_dense = True
-    cloud.data = records.tobytes()
+    cloud.data = _byte_array(rows)
     return cloud
+
+
+def _point_rows(points: MatchedPoints) -> np.ndarray | None:
+    """Return the (N, 7) float32 rows the points' columns are views of, in MATCH_FIELDS order
+    (little-endian), or None when they are not laid out so."""
+    block = points.xyz.base
+    count = len(points)
+    if (sys.byteorder != 'little' or not isinstance(block, np.ndarray)
+            or block.dtype != np.float32 or block.ndim != 2
+            or block.shape[1] != len(MATCH_FIELDS) or not block.flags.c_contiguous
+            or block.shape[0] < count or points.xyz.shape != (count, 3)):
+        return None
+    start = block.ctypes.data
+    columns = (points.xyz, points.u_left, points.v_left, points.u_right, points.score)
+    for column, offset in zip(columns, (0, 12, 16, 20, 24), strict=True):
+        if (column.base is not block or column.dtype != np.float32
+                or column.strides[0] != block.strides[0] or column.shape[0] != count
+                or column.ctypes.data != start + offset):
+            return None
+    rows: np.ndarray = block[:count]
+    return rows
+
+
+def _byte_array(array: np.ndarray) -> array_module.array:
+    """Return a C-contiguous array's bytes as the array.array('B') a uint8[] field holds."""
+    data = array_module.array('B')
+    data.frombytes(np.ascontiguousarray(array).reshape(-1).view(np.uint8))
+    return data
 
 
 _POINT_FIELD_TYPES = {
@@ -300,13 +340,14 @@ def disparity_image_message(disparity_map: DisparityMap, rectified: StereoCalibr
     shift = float(rectified.left.P[0, 2] - rectified.right.P[0, 2])
     config = disparity_map.config
     low = float(config.min_disparity) - shift
-    image = np.where(np.isfinite(disparity_map.disparity), disparity_map.disparity - shift,
-                     low - 1.0).astype(np.float32)
+    image = disparity_map.disparity - np.float32(shift)
+    image[~np.isfinite(image)] = low - 1.0
     msg = DisparityImage()
     msg.header = header
     msg.image = Image(header=header, height=image.shape[0], width=image.shape[1],
-                      encoding='32FC1', is_bigendian=0, step=4 * image.shape[1],
-                      data=image.tobytes())
+                      encoding='32FC1', is_bigendian=int(sys.byteorder == 'big'),
+                      step=4 * image.shape[1], check_fields=True)
+    msg.image.data = _byte_array(image)
     msg.f = float(rectified.left.P[0, 0])
     msg.t = float(rectified.baseline_m)
     x, y, width, height = disparity_map.roi
@@ -315,3 +356,99 @@ def disparity_image_message(disparity_map: DisparityMap, rectified: StereoCalibr
     msg.max_disparity = float(config.max_disparity) - shift
     msg.delta_d = 1.0 / 16.0 if config.subpixel else 1.0
     return msg
+
+
+# --- transforms (tf2_msgs/TFMessage on /tf and /tf_static) ------------------------------------
+
+
+def transform_to_message(transform: Transform, stamp: Time) -> TransformStamped:
+    """Return a geometry_msgs/TransformStamped (parent frame in the header) of `transform`."""
+    msg = TransformStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = transform.frame_id
+    msg.child_frame_id = transform.child_frame_id
+    msg.transform.translation.x, msg.transform.translation.y, msg.transform.translation.z = (
+        float(value) for value in transform.translation)
+    rotation = msg.transform.rotation
+    rotation.x, rotation.y, rotation.z, rotation.w = (float(value)
+                                                      for value in transform.rotation)
+    return msg
+
+
+def transforms_to_tf_message(transforms: list[Transform], stamp: Time) -> TFMessage:
+    """Return a tf2_msgs/TFMessage holding `transforms`, all stamped `stamp`."""
+    return TFMessage(transforms=[transform_to_message(t, stamp) for t in transforms])
+
+
+def transform_from_message(msg: TransformStamped) -> Transform:
+    """Return the Transform of a TransformStamped (not validated: see Transform.problem())."""
+    translation, rotation = msg.transform.translation, msg.transform.rotation
+    return Transform(msg.header.frame_id, msg.child_frame_id,
+                     (float(translation.x), float(translation.y), float(translation.z)),
+                     (float(rotation.x), float(rotation.y), float(rotation.z),
+                      float(rotation.w)))
+
+
+def tf_message_to_transforms(msg: TFMessage) -> list[Transform]:
+    """Return the usable transforms of a TFMessage; those with a problem() are left out."""
+    transforms = [transform_from_message(item) for item in msg.transforms]
+    return [transform for transform in transforms if transform.problem() is None]
+
+
+# --- markers (visualization_msgs/MarkerArray) -------------------------------------------------
+
+MARKER_NAMESPACE = 'best_point'
+# RGBA of each kind of marker
+_AREA_POINTS_COLOUR = (0.3, 0.6, 1.0, 0.8)
+_BORDER_COLOUR = (1.0, 0.5, 0.0, 1.0)
+_CENTRE_COLOUR = (1.0, 1.0, 0.0, 1.0)
+_BEST_POINT_COLOUR = (0.0, 1.0, 0.0, 1.0)
+
+
+def _marker(header: Header, kind: int, marker_id: int, namespace: str,
+            scale: float, colour: tuple[float, float, float, float]) -> Marker:
+    marker = Marker(header=header, ns=namespace, id=marker_id, type=kind, action=Marker.ADD)
+    marker.pose.orientation.w = 1.0
+    marker.scale.x = marker.scale.y = marker.scale.z = scale
+    marker.color.r, marker.color.g, marker.color.b, marker.color.a = colour
+    return marker
+
+
+def _finite_points(values: np.ndarray) -> list[Point]:
+    rows = np.asarray(values, dtype=float).reshape(-1, 3)
+    return [_point(row) for row in rows if np.all(np.isfinite(row))]
+
+
+def decision_to_markers(decision: BestPointDecision, header: Header,
+                        namespace: str = MARKER_NAMESPACE) -> MarkerArray:
+    """Return markers of one decision in header.frame_id (`world`), for RViz or Foxglove.
+
+    A DELETEALL first clears the previous decision's markers, then (what is known of): the
+    correlation area's points (POINTS, id 0), the four border points (SPHERE_LIST, id 1), the
+    four areas' centres (SPHERE, ids 2-5) with their numbers as in Fig. 4 (TEXT_VIEW_FACING
+    '1'..'4', ids 6-9), and the best point (SPHERE, id 10).
+    """
+    markers = [Marker(header=header, ns=namespace, action=Marker.DELETEALL)]
+    area = _marker(header, Marker.POINTS, 0, namespace, 0.0015, _AREA_POINTS_COLOUR)
+    area.points = _finite_points(decision.area_points_world)
+    if area.points:
+        markers.append(area)
+    border = _marker(header, Marker.SPHERE_LIST, 1, namespace, 0.004, _BORDER_COLOUR)
+    border.points = _finite_points(decision.border_points)
+    if border.points:
+        markers.append(border)
+    for index, centre in enumerate(np.asarray(decision.area_centres, dtype=float)):
+        if not np.all(np.isfinite(centre)):
+            continue
+        sphere = _marker(header, Marker.SPHERE, 2 + index, namespace, 0.004, _CENTRE_COLOUR)
+        sphere.pose.position = _point(centre)
+        label = _marker(header, Marker.TEXT_VIEW_FACING, 6 + index, namespace, 0.012,
+                        _CENTRE_COLOUR)
+        label.pose.position = _point(centre + np.array([0.0, 0.0, 0.008]))
+        label.text = str(index + 1)
+        markers += [sphere, label]
+    if decision.best_point_world is not None:
+        best = _marker(header, Marker.SPHERE, 10, namespace, 0.008, _BEST_POINT_COLOUR)
+        best.pose.position = _point(decision.best_point_world)
+        markers.append(best)
+    return MarkerArray(markers=markers)

@@ -107,12 +107,12 @@ class CorrelationNode(Node):
 
     def _work(self) -> None:
         seconds = warm_up()
-        # Subscribe only now: until the kernels are compiled (10-15 s on a fresh checkout) the
-        # node could not keep up, and upstream publishers (or `bag play --wait-for-subscribers`)
-        # can see on the graph when it is ready.
+        # Subscribe only once the matcher has run (its kernel loaded, its working memory
+        # faulted in), so that upstream publishers (or `bag play --wait-for-subscribers`) can
+        # see on the graph when it is ready.
         self.create_subscription(StereoPair, 'stereo/pair', self._on_pair, self._input_qos)
-        self.get_logger().info(f'matching kernels ready in {seconds:.2f} s (numba compile or '
-                               'cache load); subscribed to stereo/pair')
+        self.get_logger().info(f'matching kernel ready in {seconds:.2f} s; subscribed to '
+                               'stereo/pair')
         next_allowed = 0.0
         while True:
             with self._condition:

@@ -1,25 +1,35 @@
 """Choose the best point of the correlation area with the fuzzy system (or a baseline).
 
-Subscribes `stereo/matches` (StereoMatches), publishes `best_point` (PointStamped in `world`,
-stamped with the pair's stamp, only when a point was chosen) and `best_point/decision`
-(FuzzyDecision, for every input, with the reason when no point was chosen), and /diagnostics.
+Subscribes `stereo/matches` (StereoMatches) and `/tf_static`, publishes `best_point`
+(PointStamped in `world`, stamped with the pair's stamp, only when a point was chosen),
+`best_point/decision` (FuzzyDecision, for every input, with the reason when no point was
+chosen), `best_point/markers` (MarkerArray in `world`: the correlation area, border points,
+numbered area centres and best point, while someone subscribes) and /diagnostics.
 The algorithm is point_selectors.BestPointChooser; this node only converts and publishes. A
 decision takes a few milliseconds even at 100k points, so it runs in the subscription callback and
 every input gets its decision.
+
+The matches' frame is placed in `world` by, in this order: the pose file `rig_pose_file`, the
+transforms on /tf_static (a replayed bag that recorded them needs no rig parameters), or the
+chapter's rig.* numbers (core/rig_pose.py). A configured rig.baseline_m that disagrees with the
+calibration the matches carry refuses the decision (`rig_mismatch`), naming both baselines.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from collections import Counter
 from typing import Any
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped
 from rclpy.node import Node
 from std_msgs.msg import Header
 from stereo_fuzzy_parameters.declaration import declare_settings, run_node
+from visualization_msgs.msg import MarkerArray
 
 from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
 from stereo_fuzzy_perception.core.best_point import correlation_area
@@ -36,22 +46,37 @@ from stereo_fuzzy_perception.core.best_point.point_selectors import (
     SelectorError,
 )
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+from stereo_fuzzy_perception.core.rig_pose import (
+    LEFT_CAMERA_FRAME,
+    RIG_PARAMETERS,
+    CameraPoseSource,
+    RigPoseError,
+    Transform,
+)
 from stereo_fuzzy_perception.nodes import qos
 from stereo_fuzzy_perception.nodes.conversions import (
     best_point_to_point_stamped,
     camera_info_to_calibration,
     cloud_to_matched_points,
+    decision_to_markers,
     decision_to_message,
+    tf_message_to_transforms,
 )
 from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import FuzzyBestPointSettings
+from tf2_msgs.msg import TFMessage
 
 MATCHES_TOPIC = 'stereo/matches'
 BEST_POINT_TOPIC = 'best_point'
 DECISION_TOPIC = 'best_point/decision'
+MARKERS_TOPIC = 'best_point/markers'
 DIAGNOSTICS_TOPIC = '/diagnostics'
+TF_STATIC_TOPIC = '/tf_static'
 MALFORMED_INPUT = 'malformed_input'
-REFUSAL_REASONS = (NO_POINTS, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED, MALFORMED_INPUT)
+RIG_MISMATCH = 'rig_mismatch'
+REFUSAL_REASONS = (NO_POINTS, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED, MALFORMED_INPUT,
+                   RIG_MISMATCH)
 ERROR_THROTTLE_S = 5.0
+HINT_THROTTLE_S = 60.0
 
 
 def build_chooser(settings: FuzzyBestPointSettings) -> BestPointChooser:
@@ -74,11 +99,22 @@ def build_chooser(settings: FuzzyBestPointSettings) -> BestPointChooser:
         raise
 
 
+def build_pose_source(settings: FuzzyBestPointSettings) -> CameraPoseSource:
+    """Return where the camera pose comes from (pose file or rig.* numbers).
+
+    Raises:
+        RigPoseError: An unusable pose file.
+    """
+    return CameraPoseSource.from_settings(settings.rig.stereo_rig(), settings.rig_pose_file,
+                                          settings.world.world_frame)
+
+
 def chooser_problem(settings: FuzzyBestPointSettings) -> str | None:
-    """Return why no chooser can be built from the settings (e.g. a bad rule base), or None."""
+    """Return why the settings cannot work (e.g. a bad rule base or pose file), or None."""
     try:
         build_chooser(settings)
-    except SelectorError as error:
+        build_pose_source(settings)
+    except (SelectorError, RigPoseError) as error:
         return str(error)
     return None
 
@@ -92,6 +128,9 @@ class FuzzyBestPointNode(Node):
         self.settings = declare_settings(self, FuzzyBestPointSettings,
                                          apply=self._apply_settings, check=chooser_problem)
         self._chooser = build_chooser(self.settings)
+        self._pose_source = build_pose_source(self.settings)
+        self._static_transforms: dict[str, Transform] = {}
+        self._pose_origin = ''
         # Compile (first run) or load the numba point kernel now, not on the first input.
         started = time.monotonic()
         correlation_area.warm_up()
@@ -104,9 +143,11 @@ class FuzzyBestPointNode(Node):
             PointStamped, BEST_POINT_TOPIC, qos.RESULTS)
         self.decision_publisher = self.create_publisher(
             FuzzyDecision, DECISION_TOPIC, qos.RESULTS)
+        self.markers_publisher = self.create_publisher(MarkerArray, MARKERS_TOPIC, qos.RESULTS)
         self.diagnostics_publisher = self.create_publisher(
             DiagnosticArray, DIAGNOSTICS_TOPIC, qos.DIAGNOSTICS)
         self.create_subscription(StereoMatches, MATCHES_TOPIC, self._on_matches, qos.RESULTS)
+        self.create_subscription(TFMessage, TF_STATIC_TOPIC, self._on_tf_static, qos.TF_STATIC)
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(
             f'choosing best points with {self._describe()} from {MATCHES_TOPIC}')
@@ -144,8 +185,51 @@ class FuzzyBestPointNode(Node):
                                          reason=str(error))
             self._publish(decision, header, msg.header.frame_id)
             return
+        try:
+            chooser = dataclasses.replace(chooser, world_from_camera=self._world_from_camera(
+                StereoCalibration(left, right), msg.header.frame_id or LEFT_CAMERA_FRAME))
+        except RigPoseError as error:
+            self.get_logger().error(f'camera pose: {error}',
+                                    throttle_duration_sec=ERROR_THROTTLE_S)
+            self._publish(BestPointDecision(chooser.selector, status=RIG_MISMATCH,
+                                            reason=str(error)), header, msg.header.frame_id)
+            return
         decision = chooser.decide(points, left, right)
+        if (decision.status == NO_POINTS and decision.points_in > 0
+                and not self._pose_source.transforms and self._pose_origin == RIG_PARAMETERS):
+            self.get_logger().warning(
+                f'none of {decision.points_in} points lands in the workspace with the camera '
+                'pose of the rig.* parameters: if they do not describe this rig, give its pose '
+                'file (rig_pose_file, written by rig_calibration) or publish it on /tf_static',
+                throttle_duration_sec=HINT_THROTTLE_S)
         self._publish(decision, header, msg.header.frame_id)
+
+    def _on_tf_static(self, msg: TFMessage) -> None:
+        transforms = tf_message_to_transforms(msg)
+        with self._lock:
+            for transform in transforms:
+                self._static_transforms[transform.child_frame_id] = transform
+
+    def _world_from_camera(self, calibration: StereoCalibration,
+                           camera_frame: str) -> np.ndarray:
+        """Return world <- camera from the pose file, /tf_static or the rig.* numbers.
+
+        Raises:
+            RigPoseError: A configured baseline disagrees with the calibration, or the pose
+                file does not place `camera_frame`.
+        """
+        source = self._pose_source
+        if not source.transforms:
+            with self._lock:
+                static = list(self._static_transforms.values())
+            from_tf = source.with_transforms(static, TF_STATIC_TOPIC)
+            if static and from_tf.connects(camera_frame):
+                source = from_tf
+        if source.origin != self._pose_origin:
+            self._pose_origin = source.origin
+            self.get_logger().info(f'{camera_frame} placed in {source.world_frame} by '
+                                   f'{source.origin}')
+        return source.world_from_camera(calibration, camera_frame)
 
     def _publish(self, decision: BestPointDecision, header: Header, camera_frame: str) -> None:
         self.decisions[decision.status] += 1
@@ -159,6 +243,8 @@ class FuzzyBestPointNode(Node):
         else:
             self.get_logger().debug(f'no best point: {decision.status_text()}')
         self.decision_publisher.publish(decision_to_message(decision, header, camera_frame))
+        if self.markers_publisher.get_subscription_count() > 0:
+            self.markers_publisher.publish(decision_to_markers(decision, header))
 
     def _publish_diagnostics(self) -> None:
         made = self.decisions[STATUS_OK]
@@ -172,6 +258,8 @@ class FuzzyBestPointNode(Node):
         else:
             status.level, status.message = DiagnosticStatus.WARN, self._last_status
         values: list[tuple[str, object]] = [('selector', self._describe()),
+                                            ('camera pose from', self._pose_origin or
+                                             self._pose_source.origin),
                                             ('decisions made', made),
                                             ('decisions refused', sum(refused.values()))]
         values += [(f'refused {reason}', count) for reason, count in refused.items()]

@@ -45,7 +45,12 @@ class FuzzyBestPointSettings:
     min_points: int = parameter(
         _AREA.min_points, 'Fewer points in the correlation area means no best point',
         1, 1_000_000)
-    # --- rig pose (read-only; must match the calibration the matches were made with)
+    # --- rig pose: a pose file (static_transform_publisher form), /tf_static, or the chapter's
+    # alpha, theta, z0 (+ x0, y0, vergence) converted to the same transform (core/rig_pose.py)
+    rig_pose_file: str = parameter(
+        '', 'Pose file with the left camera optical frame in world (the form '
+        'static_transform_publisher takes); overrides the rig.* pose numbers; empty = use them',
+        read_only=True)
     rig: RigSettings = parameter_group(RigSettings)
     # --- reporting
     diagnostics_period_s: float = parameter(

@@ -1,6 +1,12 @@
 """render_scenes: render seeded stereo scenes straight into a rosbag2 (MCAP) bag.
 
-Each scene becomes one instant of the bag, every message stamped alike:
+The bag first carries the rig the scenes were rendered with, at the first scene's time:
+
+  /tf_static                                tf2_msgs/TFMessage (transient local): world ->
+                                            left_camera_optical_frame -> right_camera_optical_frame
+
+so a replay places the cameras without rig parameters. Then each scene becomes one instant of
+the bag, every message stamped alike:
 
   /left/camera_info, /right/camera_info     sensor_msgs/CameraInfo (K, D, R, P of the rig)
   /ground_truth/target                      geometry_msgs/PointStamped, frame `world`
@@ -34,12 +40,19 @@ from stereo_fuzzy_perception.bag.bag_io import (
     BagError,
     BagWriter,
     format_info,
+    make_qos,
     read_info,
 )
+from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+from stereo_fuzzy_perception.core.rig_pose import (
+    chapter_left_camera_transform,
+    right_camera_transform,
+)
 from stereo_fuzzy_perception.nodes.conversions import (
     array_to_image,
     calibration_to_camera_info,
+    transforms_to_tf_message,
 )
 from stereo_fuzzy_perception.simulation.scene_messages import (
     ground_truth_to_marker,
@@ -67,6 +80,8 @@ TOPICS = {
     '/left/image_raw': 'sensor_msgs/msg/Image',
     '/right/image_raw': 'sensor_msgs/msg/Image',
 }
+# The rig, once at the start of the bag, as tf2_ros' static broadcaster offers it.
+RIG_TOPICS = {'/tf_static': 'tf2_msgs/msg/TFMessage'}
 WORLD_FRAME = 'world'
 SEED_STRIDE = 10000
 
@@ -132,6 +147,14 @@ def frame_messages(frame: StereoFrame, stamp_ns: int) -> list[tuple[str, bytes]]
     return [(topic, serialize_message(messages[topic])) for topic in TOPICS]
 
 
+def rig_message(rig: StereoRig, calibration: StereoCalibration, stamp_ns: int) -> bytes:
+    """Return the CDR bytes of /tf_static: world -> left optical -> right optical frame."""
+    left = chapter_left_camera_transform(rig, WORLD_FRAME, calibration.left.frame_id)
+    right = right_camera_transform(calibration, calibration.left.frame_id,
+                                   calibration.right.frame_id)
+    return bytes(serialize_message(transforms_to_tf_message([left, right], _stamp(stamp_ns))))
+
+
 def write_scene_bag(settings: SceneBagSettings, command: str = '') -> int:
     """Render every scene of `settings` into a new bag; return the number of scenes.
 
@@ -147,15 +170,21 @@ def write_scene_bag(settings: SceneBagSettings, command: str = '') -> int:
                        encoding=settings.encoding) as renderer, \
             BagWriter(settings.output, compression=settings.compression,
                       compression_level=settings.compression_level) as bag:
+        for topic, msgtype in RIG_TOPICS.items():
+            bag.add_topic(topic, msgtype, (make_qos(depth=1, transient_local=True),))
         for topic, msgtype in TOPICS.items():
             bag.add_topic(topic, msgtype)
         if command:
             bag.set_custom_data('render_scenes', command)
+        start_ns = round(settings.start_time_s * 1e9)
+        bag.write('/tf_static', start_ns, canonical_cdr(
+            rig_message(settings.rig, renderer.calibration, start_ns), RIG_TOPICS['/tf_static'],
+            bag.typestore))
         for index, (scene_seed, object_type) in enumerate(plan):
             scene = random_scene(scene_seed, object_type, rig=settings.rig,
                                  camera=settings.camera)
             frame = renderer.render(scene)
-            stamp_ns = round(settings.start_time_s * 1e9) + round(index * settings.period_s * 1e9)
+            stamp_ns = start_ns + round(index * settings.period_s * 1e9)
             for order, (topic, data) in enumerate(frame_messages(frame, stamp_ns)):
                 bag.write(topic, stamp_ns + 1000 * order,
                           canonical_cdr(data, TOPICS[topic], bag.typestore))

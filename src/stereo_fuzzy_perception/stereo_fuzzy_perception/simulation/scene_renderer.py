@@ -34,6 +34,7 @@ import pybullet
 
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration, StereoCalibration
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+from stereo_fuzzy_perception.core.rig_pose import quaternion_from_matrix
 from stereo_fuzzy_perception.simulation.scene_model import (
     GroundTruth,
     ObjectType,
@@ -496,6 +497,79 @@ class SceneRenderer:
             assert ids is not None
             masks.append([ids == body for body in bodies])
         return masks[0], masks[1]
+
+    def render_plane(self, texture: np.ndarray, world_from_plane: np.ndarray,
+                     extent_m: tuple[float, float, float, float], seed: int = 0,
+                     oversampling: int = 3) -> tuple[np.ndarray, np.ndarray]:
+        """Render a flat textured rectangle alone (e.g. a calibration board) with both cameras.
+
+        Args:
+            texture: RGB uint8 image; its top-left pixel lies at (x_min, y_min) of the
+                rectangle, its rows along the rectangle's y axis.
+            world_from_plane: 4x4 pose of the rectangle's frame (rectangle in its z = 0 plane).
+            extent_m: (x_min, y_min, x_max, y_max) of the rectangle in its frame [m].
+            seed: Seed of the sensor noise.
+            oversampling: Odd factor: each pixel is the mean of oversampling^2 rendered ones,
+                as a sensor integrates light over its pixel (TinyRenderer does not
+                antialias, which puts edges on whole pixels); 1 renders as render() does.
+
+        Returns:
+            (left, right) images in the renderer's encoding, with its lenses and sensors.
+
+        Raises:
+            RenderError: For an even or non-positive `oversampling`.
+        """
+        if oversampling < 1 or oversampling % 2 == 0:
+            raise RenderError(f'oversampling must be an odd factor >= 1, got {oversampling}')
+        self._fresh_world()
+        x0, y0, x1, y1 = extent_m
+        # pybullet samples textures with v = 0 at the image's last row.
+        mesh = {'vertices': [[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]],
+                'indices': [0, 1, 2, 0, 2, 3],
+                'uvs': [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]],
+                'normals': [[0.0, 0.0, 1.0]] * 4}
+        pose = np.asarray(world_from_plane, dtype=float)
+        position = (float(pose[0, 3]), float(pose[1, 3]), float(pose[2, 3]))
+        self._add_mesh(mesh, position, quaternion_from_matrix(pose[:3, :3]),
+                       self._load_texture('plane', texture))
+        rng = np.random.default_rng([seed, 0x9A7E])
+        left_rgb = self._render_oversampled(self.rig.world_from_left_camera(), oversampling)
+        right_rgb = self._render_oversampled(self.rig.world_from_right_camera(), oversampling)
+        sensor = self.sensor
+        left = _apply_sensor(_convert(left_rgb, self.encoding), rng, 1.0, 0.0, sensor.noise_std)
+        right = _apply_sensor(_convert(right_rgb, self.encoding), rng, sensor.right_gain,
+                              sensor.right_offset, sensor.noise_std)
+        return left, right
+
+    def _render_oversampled(self, world_from_camera: np.ndarray, factor: int) -> np.ndarray:
+        """Render one camera's RGB image at `factor` x the resolution and average it down.
+
+        Rendered pixel (u_k, v_k) sees the ray of image point (u_k / k, (v_k + 1) / k - 1) of
+        this renderer's camera (principal point W / 2, H / 2 - 1 at both resolutions), so image
+        pixel (u, v) averages the k x k block centred on (k u, k v + k - 1).
+        """
+        if factor == 1:
+            return self._render_view(world_from_camera, False)[0]
+        camera, margin, maps = self.camera, self._margin_px, self._maps
+        width, height = camera.width + 2 * margin, camera.height + 2 * margin
+        fov_deg = math.degrees(2.0 * math.atan((height / 2.0) / camera.focal_px))
+        try:
+            self.camera = SimulatedCamera(width=factor * width, height=factor * height,
+                                          vertical_fov_deg=fov_deg, near_m=camera.near_m,
+                                          far_m=camera.far_m)
+            self._margin_px, self._maps = 0, None
+            fine = self._render_view(world_from_camera, False)[0].astype(np.float32)
+        finally:
+            self.camera, self._margin_px, self._maps = camera, margin, maps
+        half = (factor - 1) // 2
+        fine = np.pad(fine, ((0, half), (half, 0), (0, 0)), mode='edge')[half:, :factor * width]
+        rgb = fine.reshape(height, factor, width, factor, 3).mean(axis=(1, 3))
+        ideal: np.ndarray = np.clip(np.round(rgb), 0, 255).astype(np.uint8)
+        if maps is None:
+            return ideal
+        distorted: np.ndarray = cv2.remap(ideal, *maps, interpolation=cv2.INTER_LINEAR,
+                                          borderMode=cv2.BORDER_REPLICATE)
+        return distorted
 
 
 def render_scene(seed: int, object_type: ObjectType | str | None = None,

@@ -100,6 +100,7 @@ class BestPointDecision:
         firing_strengths: (L,).
         eq10_point: (3,) Eq. 10 point before the height rule [m], or None.
         consequent_points: (L, 3) the rules' y_l [m].
+        area_points_world: (M, 3) the correlation area's points in `world` [m] (for markers).
     """
 
     selector: str
@@ -128,6 +129,7 @@ class BestPointDecision:
     firing_strengths: np.ndarray = field(default_factory=lambda: np.zeros(0))
     eq10_point: np.ndarray | None = None
     consequent_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    area_points_world: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     @property
     def has_best_point(self) -> bool:
@@ -215,6 +217,7 @@ class BestPointChooser:
         decision.points_in, decision.points_valid = area.points_in, area.points_valid
         decision.clusters_found, decision.points_used = area.clusters_found, area.points_used
         decision.top_height = area.top_height
+        decision.area_points_world = area.xyz_world
         if not area.ok:
             return self._refuse(decision, area.status, area.reason)
         areas = split_into_areas(area, principal_point(left), principal_point(right))

@@ -1,7 +1,7 @@
 """The correlation stage in one call: rectify, match (Eqs. 7-8), triangulate (Eq. 1).
 
 correlation_node calls `StereoMatchingPipeline.process` once per pair and the benchmark times
-the same call. ROS-free: numpy, OpenCV and numba only.
+the same call. ROS-free: numpy, OpenCV and the matcher's C kernel only.
 """
 
 from __future__ import annotations
@@ -42,9 +42,11 @@ class StereoMatchingPipeline:
     progress finishes with the configuration it started with.
     """
 
-    def __init__(self, config: MatcherConfig | None = None, point_stride: int = 1) -> None:
+    def __init__(self, config: MatcherConfig | None = None, point_stride: int = 1,
+                 threads: int | None = None) -> None:
         self.config = config or MatcherConfig()
         self.point_stride = point_stride
+        self.threads = threads  # the matcher's threads; None = window_matcher.default_threads()
         self.rectifier = StereoRectifier()
 
     def process(self, left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
@@ -72,7 +74,7 @@ class StereoMatchingPipeline:
         left_rect, right_rect, rectified = self.rectifier.rectify(left, right, calibration)
         rectified_at = time.perf_counter()
         disparity_map = match(left_rect, right_rect, config,
-                              row_step=1 if full_disparity else stride)
+                              row_step=1 if full_disparity else stride, threads=self.threads)
         matched_at = time.perf_counter()
         points = triangulate(disparity_map.disparity, disparity_map.score, rectified, stride)
         done = time.perf_counter()

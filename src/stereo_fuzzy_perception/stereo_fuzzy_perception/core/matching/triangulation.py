@@ -11,15 +11,28 @@ which is Z = f B / d when both principal points agree (what the chapter's Eq. 1 
 rectification has undone Eqs. 2-6). The point is then rotated back from the left rectified frame
 to the left camera's optical frame with R_left^T, the frame StereoMatches carries.
 
-ROS-free: numpy only.
+The pass over the pixels is the matcher kernel's triangulate() (one loop over the disparity map,
+valid pixels only), which writes each point as the row (x, y, z, u_left, v_left, u_right, score)
+of one float32 block: the points' columns are views of that block, and a PointCloud2 with the
+fields in that order is the block's bytes (conversions.matched_points_to_cloud copies them once).
+The block is reused once nothing refers to the previous points any more.
+
+ROS-free: numpy and the C kernel only.
 """
 
 from __future__ import annotations
+
+import sys
+import threading
 
 import numpy as np
 
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.matching import _window_matcher_kernel as _kernel
+
+# The block's columns, in the order of conversions.MATCH_FIELDS.
+POINT_COLUMNS = ('x', 'y', 'z', 'u_left', 'v_left', 'u_right', 'score')
 
 
 def triangulate(disparity: np.ndarray, score: np.ndarray, rectified: StereoCalibration,
@@ -39,32 +52,35 @@ def triangulate(disparity: np.ndarray, score: np.ndarray, rectified: StereoCalib
         raise ValueError(f'stride {stride} must be >= 1')
     left_p = np.asarray(rectified.left.P, dtype=np.float64)
     right_p = np.asarray(rectified.right.P, dtype=np.float64)
-    fx, fy = left_p[0, 0], left_p[1, 1]
-    cx_left, cy = left_p[0, 2], left_p[1, 2]
-    tx_left, ty_left = left_p[0, 3], left_p[1, 3]
-    numerator = tx_left - right_p[0, 3]  # f B [px m]
-    principal_shift = cx_left - right_p[0, 2]
+    height, width = disparity.shape
+    capacity = ((height + stride - 1) // stride) * ((width + stride - 1) // stride)
+    block = _point_block(capacity)
+    count = _kernel.triangulate(
+        np.ascontiguousarray(disparity, dtype=np.float32),
+        np.ascontiguousarray(score, dtype=np.float32), block, stride=int(stride),
+        fx=float(left_p[0, 0]), fy=float(left_p[1, 1]), cx=float(left_p[0, 2]),
+        cy=float(left_p[1, 2]), tx=float(left_p[0, 3]), ty=float(left_p[1, 3]),
+        numerator=float(left_p[0, 3] - right_p[0, 3]),  # f B [px m]
+        principal_shift=float(left_p[0, 2] - right_p[0, 2]),
+        rotation=tuple(float(value) for value in
+                       np.asarray(rectified.left.R, dtype=np.float64).ravel()))
+    rows = block[:count]
+    return MatchedPoints(xyz=rows[:, 0:3], u_left=rows[:, 3], v_left=rows[:, 4],
+                         u_right=rows[:, 5], score=rows[:, 6])
 
-    sampled = disparity[::stride, ::stride]
-    rows, columns = np.nonzero(np.isfinite(sampled))
-    d = sampled[rows, columns].astype(np.float64)
-    rows, columns = rows * stride, columns * stride
-    effective = d - principal_shift
-    in_front = effective > 0.0
-    rows, columns, d, effective = rows[in_front], columns[in_front], d[in_front], effective[
-        in_front]
-    u_left = columns.astype(np.float64)
-    v = rows.astype(np.float64)
-    z = numerator / effective
-    x = ((u_left - cx_left) * z - tx_left) / fx
-    y = ((v - cy) * z - ty_left) / fy
-    rectified_xyz = np.stack([x, y, z], axis=1)
-    # optical <- rectified is R^T; for row vectors p_opt^T = p_rect^T R.
-    optical_xyz = rectified_xyz @ np.asarray(rectified.left.R, dtype=np.float64)
-    return MatchedPoints(
-        xyz=optical_xyz.astype(np.float32), u_left=u_left.astype(np.float32),
-        v_left=v.astype(np.float32), u_right=(u_left - d).astype(np.float32),
-        score=score[rows, columns].astype(np.float32))
+
+_blocks = threading.local()
+
+
+def _point_block(capacity: int) -> np.ndarray:
+    """Return a (capacity, 7) float32 block: this thread's last one when nothing refers to it."""
+    previous: np.ndarray | None = getattr(_blocks, 'block', None)
+    # 3 = the attribute, this name and getrefcount's argument: no points view it any more
+    if previous is not None and previous.shape[0] >= capacity and sys.getrefcount(previous) <= 3:
+        return previous
+    block = np.empty((capacity, len(POINT_COLUMNS)), np.float32)
+    _blocks.block = block
+    return block
 
 
 def depth_from_disparity(disparity: np.ndarray | float, rectified: StereoCalibration
