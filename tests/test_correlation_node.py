@@ -254,3 +254,40 @@ def test_input_queue_depth_keeps_a_burst_that_fits(harness):
     wait_until(lambda: len(h.matches) == 5, TIMEOUT, 'all five pairs matched', h.executor)
     assert [message.header.stamp.sec for message in h.matches] == [1, 2, 3, 4, 5]
     assert h.node.dropped['superseded'] == 0
+
+
+# A rig 2.5 m straight above the workspace sees its floor at f B / Z = 8 px, the pair's SHIFT.
+OVERHEAD_RIG = {'rig.alpha_deg': 0.0, 'rig.theta_deg': 0.0, 'rig.x0_m': 0.2, 'rig.y0_m': 0.15,
+                'rig.z0_m': FOCAL * BASELINE / SHIFT, 'rig.baseline_m': BASELINE,
+                'rig.vergence_deg': 0.0}
+
+
+def test_disparity_range_0_derives_the_search_from_the_rig_and_the_workspace(harness):
+    from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+    from stereo_fuzzy_perception.core.matching.disparity_range import (
+        workspace_disparity_range,
+    )
+    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+    from stereo_fuzzy_perception.nodes.conversions import cloud_to_matched_points
+
+    rig = harness(window_size=9, **OVERHEAD_RIG)  # disparity_range: the default, 0
+    assert rig.node.get_parameter('disparity_range').value == 0
+    rig.publish_and_wait_processed(stereo_pair(stamp_sec=3))
+    wait_until(lambda: rig.matches, TIMEOUT, 'a StereoMatches message', rig.executor)
+    pose = StereoRig(baseline_m=BASELINE, alpha_deg=0.0, x0_m=0.2, y0_m=0.15,
+                     z0_m=FOCAL * BASELINE / SHIFT, vergence_deg=0.0).world_from_left_camera()
+    expected = workspace_disparity_range(
+        StereoCalibration(camera(tx=0.0), camera()), pose, (0.0, 0.0, 0.0), (0.4, 0.3, 0.2))
+    message = rig.matches[-1]
+    assert (message.min_disparity, message.disparity_range) == (
+        expected.min_disparity, expected.disparity_range)
+    assert expected.min_disparity < SHIFT < expected.max_disparity < 2 * SHIFT
+    points = cloud_to_matched_points(message.points)
+    assert np.median(points.xyz[:, 2]) == pytest.approx(FOCAL * BASELINE / SHIFT, rel=1e-3)
+
+
+def test_a_workspace_out_of_view_drops_the_pair_with_the_reason(harness):
+    rig = harness(window_size=9, **dict(OVERHEAD_RIG, **{'rig.x0_m': 9.0}))
+    rig.publish_and_wait_processed(stereo_pair())
+    assert rig.node.dropped['calibration'] == 1
+    assert 'workspace box' in rig.node.last_error

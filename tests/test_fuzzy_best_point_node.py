@@ -117,8 +117,13 @@ def test_known_object_gives_its_top_centre_and_a_consistent_decision(harness):
     p = decision.best_point_world
     np.testing.assert_allclose([p.x, p.y, p.z], best)
     assert decision.points_in == len(scene.points)
-    assert decision.points_in > decision.points_valid >= decision.points_used > 0
-    assert decision.clusters_found == 1
+    assert decision.points_in >= decision.points_valid > decision.points_used > 0
+    assert decision.clusters_found >= 1
+    assert decision.surface_source == 'measured' and decision.surface_points > 0
+    assert abs(decision.surface_offset_m) < 0.001 and decision.surface_tilt_deg < 0.5
+    assert decision.surface_normal.z == pytest.approx(1.0, abs=1e-3)
+    assert 0.0 < decision.disparity_sigma_px < 1.0
+    assert decision.object_height_sigmas > 5.0
     assert sum(decision.area_point_counts) == decision.points_used
     assert decision.top_height == pytest.approx(scene.target_world[2], abs=0.002)
     assert len(decision.rule_names) == len(decision.firing_strengths) == 12

@@ -268,9 +268,10 @@ def test_rig_transforms_node_publishes_the_pose_file_and_right_camera_on_tf_stat
 
 
 def test_rig_transforms_node_without_a_pose_file_ends_with_the_reason(ros_context):
+    from stereo_fuzzy_parameters.declaration import StartupError
     from stereo_fuzzy_perception.nodes.rig_transforms_node import RigTransformsNode
 
-    with pytest.raises(ValueError, match='rig_pose_file is empty'):
+    with pytest.raises(StartupError, match='rig_pose_file is empty'):
         RigTransformsNode(context=ros_context)
 
 

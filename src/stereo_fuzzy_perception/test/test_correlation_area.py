@@ -1,136 +1,142 @@
 """The correlation area, its border points and four areas (steps 1-3), on synthetic points."""
 
+import math
+
 import numpy as np
 import pytest
-from scipy import ndimage
+from grid_scenes import Box, grid_matches
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     DEGENERATE_AREA,
+    NO_OBJECT,
     NO_POINTS,
     STATUS_OK,
     TOO_FEW_POINTS,
-    TOP_BIN_M,
-    TOP_DENSE_SHARE,
-    TOP_QUANTILE,
     AreaConfig,
     CorrelationArea,
     CorrelationAreaError,
     find_correlation_area,
     split_into_areas,
 )
+from stereo_fuzzy_perception.core.best_point.work_surface import SURFACE_MEASURED
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
-from stereo_fuzzy_perception.core.rig_geometry import StereoRig, transform_points
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 from stereo_fuzzy_perception.simulation.synthetic_scenes import GeometricSceneSource
 
 RIG = StereoRig()
 WORLD_FROM_LEFT = RIG.world_from_left_camera()
+# 0.8 m from the surface along the optical axis, 10 cm baseline
+FAR_RIG = StereoRig(baseline_m=0.10, alpha_deg=30.0, x0_m=0.2, y0_m=-0.25,
+                    z0_m=0.8 * math.cos(math.radians(30.0)), vergence_deg=6.0)
+NEAR_RIG = StereoRig(baseline_m=0.05, alpha_deg=20.0, theta_deg=10.0, x0_m=0.22, y0_m=-0.05,
+                     z0_m=0.3, vergence_deg=2.0)
 
 
-def points_from_world(world: np.ndarray, score: np.ndarray | None = None) -> MatchedPoints:
-    """Matched points at given world positions (image coordinates are arbitrary here)."""
-    camera = transform_points(np.linalg.inv(WORLD_FROM_LEFT), world)
-    count = len(world)
-    u = 320.0 + 600.0 * camera[:, 0] / camera[:, 2]
-    v = 240.0 + 600.0 * camera[:, 1] / camera[:, 2]
-    return MatchedPoints(camera, u, v, u - 40.0,
-                         np.ones(count) if score is None else score)
+DEFAULTS = AreaConfig()
 
 
-def block(rng, centre, size, height, count):
-    xy = rng.uniform(-0.5, 0.5, (count, 2)) * size + centre
-    z = rng.uniform(0.005, height, count)  # clear of the surface margin
-    z[: count // 2] = height  # half on the top face
-    return np.column_stack([xy, z])
+def area_in(rig: StereoRig, box: Box | None, noise_px: float, stride: int = 1,
+            config: AreaConfig = DEFAULTS, **scene) -> CorrelationArea:
+    points, left, right = grid_matches(rig, box, noise_px, stride, **scene)
+    return find_correlation_area(points, rig.world_from_left_camera(), config,
+                                 float(left.P[0, 2] - right.P[0, 2]))
 
 
-def test_surface_and_outside_points_are_not_object_points():
-    rng = np.random.default_rng(0)
-    top = np.column_stack([rng.uniform(0.1, 0.14, 200), rng.uniform(0.1, 0.14, 200),
-                           np.full(200, 0.03)])
-    surface = np.column_stack([rng.uniform(0.0, 0.4, 300), rng.uniform(0.0, 0.3, 300),
-                               rng.normal(0.0, 0.0003, 300)])
-    outside = np.array([[0.5, 0.1, 0.03], [0.1, -0.05, 0.03], [0.1, 0.1, 0.3]])
-    area = find_correlation_area(points_from_world(np.vstack([top, surface, outside])),
-                                 WORLD_FROM_LEFT, AreaConfig())
-    assert area.status == STATUS_OK
-    assert area.points_in == 503
-    assert area.points_valid == 200
-    assert area.points_used == 200
-    assert area.top_height == pytest.approx(0.03)
+@pytest.mark.parametrize('rig', [RIG, FAR_RIG, NEAR_RIG], ids=['default', 'far', 'near'])
+@pytest.mark.parametrize('stride', [1, 3])
+@pytest.mark.parametrize('noise_px', [0.05, 0.2, 0.5])
+def test_a_noisy_table_alone_has_no_object(rig, stride, noise_px):
+    area = area_in(rig, None, noise_px, stride, seed=int(100 * noise_px) + stride)
+    assert area.status == NO_OBJECT, f'expected no object, got {area.status} {area.reason}'
+    assert 'no object on the work surface' in area.reason
+    assert area.surface.source == SURFACE_MEASURED
+    assert area.surface.disparity_sigma_px == pytest.approx(noise_px, rel=0.15)
 
 
-def test_largest_cluster_is_kept_and_counted():
-    rng = np.random.default_rng(1)
-    big = block(rng, np.array([0.1, 0.1]), 0.04, 0.02, 1000)
-    small = block(rng, np.array([0.3, 0.2]), 0.02, 0.05, 200)  # higher, but smaller
-    points = points_from_world(np.vstack([big, small]))
-    kept = find_correlation_area(points, WORLD_FROM_LEFT, AreaConfig())
-    assert kept.clusters_found == 2
-    assert np.all(np.abs(kept.xyz_world[:, 0] - 0.1) < 0.03), 'expected the big block only'
-    assert kept.top_height == pytest.approx(0.02)
-    everything = find_correlation_area(points, WORLD_FROM_LEFT,
-                                       AreaConfig(keep_largest_cluster=False))
-    assert everything.clusters_found == 2
-    assert everything.top_height == pytest.approx(0.05), 'expected the higher block on top'
+@pytest.mark.parametrize('stride', [1, 3])
+def test_a_disc_5_mm_high_at_0_8_m_is_found(stride):
+    disc = Box((0.2, 0.15), 0.05, 0.005, round=True)
+    area = area_in(FAR_RIG, disc, 0.1, stride)
+    assert area.status == STATUS_OK, area.reason
+    assert area.top_height == pytest.approx(0.005, abs=0.001)
+    centre = np.average(area.xyz_world[:, :2], axis=0, weights=area.point_weights())
+    assert np.hypot(*(centre - disc.centre_xy)) < 0.003
+    inside = np.hypot(*(area.xyz_world[:, :2] - disc.centre_xy).T) <= 0.025 + 0.002
+    assert inside.mean() > 0.97, 'expected the top face, not the surface around it'
 
 
-def test_top_band_holds_the_points_just_below_the_top():
-    rng = np.random.default_rng(2)
-    world = block(rng, np.array([0.2, 0.15]), 0.05, 0.04, 2000)
-    area = find_correlation_area(points_from_world(world), WORLD_FROM_LEFT,
-                                 AreaConfig(top_band_m=0.005))
-    assert area.xyz_world[:, 2].min() >= 0.035 - 1e-12
-    expected = np.sum(world[:, 2] >= 0.035)
-    assert area.points_used == expected
+@pytest.mark.parametrize('rig', [RIG, FAR_RIG, NEAR_RIG], ids=['default', 'far', 'near'])
+@pytest.mark.parametrize('height', [0.02, 0.06])
+def test_the_top_face_of_a_box_is_the_area(rig, height):
+    box = Box((0.2, 0.1), 0.05, height)
+    area = area_in(rig, box, 0.15, 1)
+    assert area.status == STATUS_OK, area.reason
+    assert area.top_height == pytest.approx(height, abs=0.001)
+    grown = Box(box.centre_xy, box.size + 0.004, height)  # 2 mm of depth noise around it
+    assert np.all(grown.covers(*area.xyz_world[:, :2].T)), 'expected only top-face points'
+    centre = np.average(area.xyz_world[:, :2], axis=0, weights=area.point_weights())
+    assert np.hypot(*(centre - box.centre_xy)) < 0.002, 'expected the weighted centre'
 
 
-def test_sparse_wrong_matches_above_the_object_do_not_lift_its_top():
+@pytest.mark.parametrize('offset_m, slope', [(0.004, (0.0, 0.0)), (-0.005, (0.008, -0.005)),
+                                             (0.0, (-0.01, 0.0))])
+def test_a_surface_off_the_rig_pose_is_measured_and_heights_follow_it(offset_m, slope):
+    box = Box((0.2, 0.15), 0.05, 0.03)
+    area = area_in(FAR_RIG, box, 0.1, 3, surface_z=offset_m, surface_slope=slope)
+    assert area.status == STATUS_OK, area.reason
+    surface = area.surface
+    assert surface.source == SURFACE_MEASURED
+    assert surface.slope_x == pytest.approx(slope[0], abs=5e-4)
+    assert surface.slope_y == pytest.approx(slope[1], abs=5e-4)
+    assert surface.offset_m == pytest.approx(offset_m, abs=0.001)
+    # heights come from the measured surface, not from the rig pose: the box is 3 cm high
+    # (it stands on z = offset_m; the tilted surface meets its foot only at x = y = 0)
+    tilt_drop = slope[0] * 0.2 + slope[1] * 0.1  # the surface under the box's centre
+    assert area.top_height == pytest.approx(0.03 - tilt_drop, abs=0.0015)
+
+
+def test_wrong_matches_above_the_object_do_not_lift_its_top():
+    box = Box((0.2, 0.15), 0.05, 0.03)
+    points, left, right = grid_matches(RIG, box, 0.1, 1)
     rng = np.random.default_rng(5)
-    cube = block(rng, np.array([0.2, 0.15]), 0.04, 0.03, 2000)
-    # 3 % wrong matches up to 1.5 cm above the top face, joined to the cube's cluster: more
-    # than the 1 % a 99 % quantile ignores (it put the top 8 mm high in rendered scenes)
-    above = np.column_stack([rng.uniform(0.185, 0.215, 60), rng.uniform(0.135, 0.165, 60),
-                             rng.uniform(0.031, 0.045, 60)])
-    area = find_correlation_area(points_from_world(np.vstack([cube, above])), WORLD_FROM_LEFT,
-                                 AreaConfig())
+    world = (points.xyz @ WORLD_FROM_LEFT[:3, :3].T) + WORLD_FROM_LEFT[:3, 3]
+    on_top = np.flatnonzero(world[:, 2] > 0.02)
+    lifted = rng.choice(on_top, size=len(on_top) // 20, replace=False)  # 5 %, up to 15 mm
+    factor = 1.0 - rng.uniform(0.005, 0.04, len(lifted))  # nearer along their rays
+    points.xyz[lifted] *= factor[:, np.newaxis]
+    area = find_correlation_area(points, WORLD_FROM_LEFT, AreaConfig())
     assert area.status == STATUS_OK
     assert area.top_height == pytest.approx(0.03, abs=0.0005)
-    assert area.points_used >= 1000  # the whole top face is in the band
-
-
-def test_top_is_the_quantile_when_every_height_level_holds_one_point():
-    # 100 points 1 mm apart in height: every 1 mm level is dense, and the 99 % quantile
-    # (rank 98) is the first point of its level, an edge of the search by level
-    heights = 0.0105 + 0.001 * np.arange(100)
-    world = np.column_stack([np.full(100, 0.2), np.full(100, 0.15), heights])
-    area = find_correlation_area(points_from_world(world), WORLD_FROM_LEFT,
-                                 AreaConfig(top_band_m=0.0045, min_points=1))
-    assert area.points_used == 6  # heights[94:]: at most 4.5 mm below heights[98]
-    assert area.top_height == pytest.approx(0.5 * (heights[96] + heights[97]), abs=1e-12)
 
 
 def test_nan_and_infinite_rows_are_ignored():
-    rng = np.random.default_rng(3)
-    world = block(rng, np.array([0.2, 0.15]), 0.05, 0.04, 500)
-    points = points_from_world(world)
+    points, left, right = grid_matches(RIG, Box((0.2, 0.15), 0.05, 0.03), 0.1, 3)
     points.xyz[0, 1] = np.nan
     points.u_left[1] = np.inf
     points.score[2] = -np.inf
     area = find_correlation_area(points, WORLD_FROM_LEFT, AreaConfig())
-    assert area.points_in == 500
-    assert area.points_valid == 497
+    assert area.status == STATUS_OK
+    assert area.points_in == len(points)
+    assert area.points_valid <= len(points) - 3
 
 
 def test_no_points_and_too_few_points_have_reasons():
     empty = find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT, AreaConfig())
     assert empty.status == NO_POINTS and 'none of 0' in empty.reason
-    few = points_from_world(np.array([[0.2, 0.1, 0.02]] * 5))
-    area = find_correlation_area(few, WORLD_FROM_LEFT, AreaConfig(min_points=6))
-    assert area.status == TOO_FEW_POINTS and 'min_points=6' in area.reason
+    area = area_in(RIG, Box((0.2, 0.15), 0.05, 0.03), 0.1, 3, config=AreaConfig(
+        min_points=1_000_000))
+    assert area.status == NO_OBJECT and '1000000 points' in area.reason
+    area = area_in(RIG, Box((0.2, 0.15), 0.05, 0.03), 0.1, 3, config=AreaConfig(
+        min_points=20, top_band_sigmas=0.1))  # a band too thin to hold the face
+    assert area.status == TOO_FEW_POINTS and 'min_points=20' in area.reason
 
 
 def test_bad_configuration_names_the_value():
-    with pytest.raises(CorrelationAreaError, match='top_band_m=0'):
-        find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT, AreaConfig(top_band_m=0.0))
+    with pytest.raises(CorrelationAreaError, match='top_band_sigmas=0'):
+        find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT,
+                              AreaConfig(top_band_sigmas=0.0))
+    with pytest.raises(CorrelationAreaError, match='object_sigmas=2'):
+        find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT,
+                              AreaConfig(object_sigmas=2.0))
     with pytest.raises(CorrelationAreaError, match='axis y'):
         find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT,
                               AreaConfig(workspace_min=(0, 0.3, 0), workspace_max=(0.4, 0.3, 1)))
@@ -140,7 +146,7 @@ def area_of(u, v, ur, world) -> CorrelationArea:
     n = len(u)
     return CorrelationArea(STATUS_OK, '', n, n, 1, n, 0.0, np.asarray(world, dtype=float),
                            np.asarray(u, dtype=float), np.asarray(v, dtype=float),
-                           np.asarray(ur, dtype=float), np.ones(n), 0.01)
+                           np.asarray(ur, dtype=float), np.ones(n))
 
 
 def test_areas_are_numbered_as_in_fig4_and_ratios_use_each_principal_point():
@@ -197,68 +203,11 @@ def test_an_empty_area_is_reported_but_not_degenerate():
 
 
 @pytest.mark.parametrize('kind', ['circle', 'cylinder', 'cubic_rectangle', 'cubic_square'])
-def test_top_height_of_noise_free_scene_is_the_object_top(kind):
-    source = GeometricSceneSource(disparity_noise_px=(0.0, 0.0))
+def test_top_height_of_geometric_scene_is_the_object_top(kind):
+    source = GeometricSceneSource()
     scene = source.scene(np.random.default_rng(4), kind)
     area = find_correlation_area(scene.points, WORLD_FROM_LEFT, AreaConfig())
-    assert area.status == STATUS_OK
-    assert area.clusters_found == 1
-    assert area.top_height == pytest.approx(scene.target_world[2], abs=1e-6)
+    assert area.status == STATUS_OK, area.reason
+    assert area.top_height == pytest.approx(scene.target_world[2], abs=0.001)
     horizontal = np.hypot(*(area.xyz_world[:, :2].mean(axis=0) - scene.target_world[:2]))
     assert horizontal < 0.005, f'top band centroid {1000 * horizontal:.2f} mm off'
-
-
-def plain_numpy_area(world: np.ndarray, config: AreaConfig) -> tuple[np.ndarray, float]:
-    """Step 1's selection written plainly with numpy and scipy: (band points (M, 3), top)."""
-    low = np.array(config.workspace_min, dtype=float)
-    high = np.array(config.workspace_max, dtype=float)
-    low[2] = max(low[2], config.surface_margin_m)
-    world = world[np.all((world >= low) & (world <= high), axis=1)]
-    start = world.min(axis=0)
-    cells = np.floor((world.max(axis=0) - start) / config.cluster_gap_m).astype(int) + 1
-    index = np.minimum(((world - start) / config.cluster_gap_m).astype(int), cells - 1)
-    occupied = np.zeros(cells, dtype=bool)
-    occupied[tuple(index.T)] = True
-    labels, _ = ndimage.label(occupied, structure=np.ones((3, 3, 3)))
-    point_labels = labels[tuple(index.T)]
-    world = world[point_labels == np.argmax(np.bincount(point_labels)[1:]) + 1]
-    heights = world[:, 2]
-    bins = ((heights - heights.min()) / TOP_BIN_M).astype(int)
-    per_bin = np.bincount(bins)
-    top_bin = np.flatnonzero(per_bin >= TOP_DENSE_SHARE * per_bin.max()).max()
-    below = np.sort(heights[bins <= top_bin])
-    top = below[int(TOP_QUANTILE * (len(below) - 1))]
-    band = world[heights >= top - config.top_band_m]
-    return band, float(np.median(band[:, 2]))
-
-
-@pytest.mark.parametrize('seed', range(5))
-def test_compiled_area_steps_agree_with_plain_numpy(seed):
-    rng = np.random.default_rng(seed)
-    blocks = [block(rng, rng.uniform([0.05, 0.05], [0.35, 0.25]), rng.uniform(0.01, 0.06),
-                    rng.uniform(0.01, 0.08), int(rng.integers(50, 3000))) for _ in range(4)]
-    clutter = rng.uniform([-0.05, -0.05, -0.01], [0.45, 0.35, 0.25], (500, 3))
-    world = np.vstack(blocks + [clutter])
-    world = world[rng.permutation(len(world))]
-    config = AreaConfig()
-    area = find_correlation_area(points_from_world(world), WORLD_FROM_LEFT, config)
-    band, median = plain_numpy_area(world, config)
-    assert area.points_used == len(band)
-    np.testing.assert_allclose(np.sort(area.xyz_world, axis=0), np.sort(band, axis=0),
-                               atol=1e-12)
-    assert area.top_height == pytest.approx(median, abs=1e-12)
-    # steps 2-3 against bincount and lexsort
-    areas = split_into_areas(area, (320.0, 240.0), (300.0, 240.0))
-    u, v = area.u_left, area.v_left
-    right = u >= 0.5 * (u.min() + u.max())
-    bottom = v >= 0.5 * (v.min() + v.max())
-    labels = 2 * right + bottom
-    np.testing.assert_array_equal(areas.counts, np.bincount(labels, minlength=4))
-    for axis in range(3):
-        np.testing.assert_allclose(areas.centres[:, axis], np.bincount(
-            labels, area.xyz_world[:, axis], 4) / areas.counts, rtol=1e-12)
-    np.testing.assert_allclose(areas.centres_u_right, np.bincount(
-        labels, area.u_right, 4) / areas.counts, rtol=1e-12)
-    first_by_u = np.lexsort((*area.xyz_world.T[::-1], v, u))[0]
-    np.testing.assert_array_equal(areas.border_points[0], area.xyz_world[first_by_u])
-    np.testing.assert_allclose(areas.centre, area.xyz_world.mean(axis=0), rtol=1e-12)

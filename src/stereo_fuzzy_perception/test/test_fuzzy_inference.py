@@ -36,7 +36,8 @@ def random_rule_base(rng: np.random.Generator) -> RuleBase:
 def four_areas(ratios: np.ndarray, centres: np.ndarray, counts: np.ndarray) -> FourAreas:
     nan4 = np.full(4, np.nan)
     return FourAreas(STATUS_OK, '', np.zeros((4, 3)), np.zeros(6), centres.mean(axis=0),
-                     centres, nan4, nan4, nan4, counts, nan4, nan4, ratios)
+                     centres, nan4, nan4, nan4, counts, np.asarray(counts, dtype=float), nan4,
+                     nan4, ratios)
 
 
 def simpful_eq10(rule_base: RuleBase, ratios: np.ndarray, consequents: np.ndarray

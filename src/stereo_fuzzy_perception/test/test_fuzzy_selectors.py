@@ -1,10 +1,13 @@
 """BestPointChooser: every selector, the decision's bookkeeping and its properties."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import nnls
+from stereo_fuzzy_perception.core.best_point import point_selectors
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     DEGENERATE_AREA,
     NO_POINTS,
@@ -98,11 +101,15 @@ def test_empty_input_yields_a_reason_not_an_exception(name):
 
 
 @pytest.mark.parametrize('name', ['fuzzy_fitted', 'fuzzy_chapter', 'neural_network'])
-def test_points_on_one_image_column_are_degenerate(name):
+def test_points_on_one_image_column_are_degenerate(name, monkeypatch):
     scene = SCENES[0]
-    points = scene.points.subset(np.arange(len(scene.points)))
-    points.u_left[:] = 300.0
-    decision = CHOOSERS[name].decide(points, scene.left, scene.right)
+    found = point_selectors.find_correlation_area(scene.points, RIG.world_from_left_camera(),
+                                                  AreaConfig())
+    assert found.status == STATUS_OK
+    one_column = dataclasses.replace(found, u_left=np.full(found.points_used, 300.0))
+    monkeypatch.setattr(point_selectors, 'find_correlation_area',
+                        lambda *args: one_column)
+    decision = CHOOSERS[name].decide(scene.points, scene.left, scene.right)
     assert not decision.has_best_point
     assert decision.status == DEGENERATE_AREA, decision.status_text()
 

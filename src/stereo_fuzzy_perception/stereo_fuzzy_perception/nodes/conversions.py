@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, PointStamped, TransformStamped
+from geometry_msgs.msg import Point, PointStamped, TransformStamped, Vector3
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField, RegionOfInterest
 from std_msgs.msg import Header
 from stereo_msgs.msg import DisparityImage
@@ -270,6 +270,15 @@ def decision_to_message(decision: BestPointDecision, header: Header,
     msg.clusters_found = int(decision.clusters_found)
     msg.points_used = int(decision.points_used)
     msg.top_height = float(decision.top_height)
+    surface = decision.surface
+    msg.surface_source = surface.source
+    msg.surface_offset_m = float(surface.offset_m)
+    msg.surface_tilt_deg = float(surface.tilt_deg)
+    normal = surface.normal
+    msg.surface_normal = Vector3(x=float(normal[0]), y=float(normal[1]), z=float(normal[2]))
+    msg.surface_points = int(surface.inliers)
+    msg.disparity_sigma_px = float(surface.disparity_sigma_px)
+    msg.object_height_sigmas = float(decision.object_height_sigmas)
     msg.border_points = [_point(row) for row in decision.border_points]
     msg.border_distances = [float(value) for value in decision.border_distances]
     msg.area_centres = [_point(row) for row in decision.area_centres]

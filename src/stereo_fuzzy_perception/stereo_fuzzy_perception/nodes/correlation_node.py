@@ -22,11 +22,13 @@ from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 from stereo_msgs.msg import DisparityImage
 
 from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
-from stereo_fuzzy_perception.core.camera_model import CalibrationError
+from stereo_fuzzy_perception.core.camera_model import CalibrationError, StereoCalibration
 from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError
+from stereo_fuzzy_perception.core.matching.disparity_range import DisparityRangeError
 from stereo_fuzzy_perception.core.matching.rectification import RectificationError
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
 from stereo_fuzzy_perception.core.matching.window_matcher import MatcherInputError, warm_up
+from stereo_fuzzy_perception.core.rig_pose import RigPoseError
 from stereo_fuzzy_perception.nodes import qos
 from stereo_fuzzy_perception.nodes.conversions import (
     disparity_image_message,
@@ -48,6 +50,8 @@ class CorrelationNode(Node):
         self.settings = declare_settings(self, CorrelationSettings, apply=self._apply_settings)
         self.pipeline = StereoMatchingPipeline(self.settings.matcher_config(),
                                                self.settings.point_stride)
+        # disparity_range 0: the range derived for the last calibration seen
+        self._derived_for: StereoCalibration | None = None
         input_qos = QoSProfile(depth=qos.RESULTS.depth, history=qos.RESULTS.history,
                                durability=qos.RESULTS.durability,
                                reliability=qos.reliability_from_name(
@@ -79,13 +83,16 @@ class CorrelationNode(Node):
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(
             f'correlation_node started: {self.pipeline.config.method}, window '
-            f'{self.pipeline.config.window_size}, disparities {self.pipeline.config.min_disparity}'
-            f'..{self.pipeline.config.max_disparity}')
+            f'{self.pipeline.config.window_size}, disparities '
+            + ('from the calibration, rig pose and workspace box'
+               if self.settings.derives_disparities else
+               f'{self.pipeline.config.min_disparity}..{self.pipeline.config.max_disparity}'))
 
     # --- parameters and input -----------------------------------------------------------------
 
     def _apply_settings(self, settings: CorrelationSettings) -> None:
         self.settings = settings
+        self._derived_for = None
         self.pipeline.config = settings.matcher_config()
         self.pipeline.point_stride = settings.point_stride
         self.get_logger().info(f'matcher settings now {self.pipeline.config}')
@@ -134,6 +141,7 @@ class CorrelationNode(Node):
         try:
             left, right, calibration = stereo_pair_to_domain(pair)
             calibration.require_valid()
+            self._derive_disparities(calibration)
             if left.shape != right.shape:
                 raise RectificationError(
                     f'left image is {left.shape[1]}x{left.shape[0]} but right image is '
@@ -146,7 +154,7 @@ class CorrelationNode(Node):
         except ImageEncodingError as error:
             self._drop('encoding', str(error))
             return
-        except CalibrationError as error:
+        except (CalibrationError, DisparityRangeError, RigPoseError) as error:
             self._drop('calibration', str(error))
             return
         except RectificationError as error:
@@ -181,6 +189,25 @@ class CorrelationNode(Node):
         self.get_logger().debug(
             f'pair matched: {len(result.points)} points, '
             + ', '.join(f'{name} {ms:.1f} ms' for name, ms in timings.items()))
+
+    def _derive_disparities(self, calibration: StereoCalibration) -> None:
+        """With disparity_range 0, search the workspace box's disparities for this calibration.
+
+        Raises:
+            DisparityRangeError: When the box is not in view of both cameras.
+        """
+        settings = self.settings
+        if not settings.derives_disparities or (
+                self._derived_for is not None
+                and self._derived_for.left.same_as(calibration.left)
+                and self._derived_for.right.same_as(calibration.right)):
+            return
+        config = settings.with_derived_disparities(calibration)
+        self.pipeline.config = config
+        self._derived_for = calibration
+        self.get_logger().info(
+            f'disparities {config.min_disparity}..{config.max_disparity} px derived from the '
+            'calibration, the rig pose and the workspace box')
 
     def _drop(self, reason: str, text: str) -> None:
         with self._condition:

@@ -3,22 +3,37 @@
 The matcher parameters mirror window_matcher.MatcherConfig (whose defaults they take) and can
 be changed at run time; `CorrelationSettings.matcher_config()` builds the config, and
 `problem()` refuses a combination it rejects (an even window, say) with the reason.
+disparity_range 0 (the default) derives the search range from the calibration, the rig pose and
+the workspace box (`with_derived_disparities`); the world, workspace and rig parameters are the
+same declarations fuzzy_best_point_node makes, so one `/**:` section of a params file gives
+them to both.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 from stereo_fuzzy_parameters.spec import parameter, parameter_group, parameter_specs
+from stereo_fuzzy_parameters.world import WorldSettings
 
+from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+from stereo_fuzzy_perception.core.matching.disparity_range import (
+    MARGIN_PX,
+    workspace_disparity_range,
+)
 from stereo_fuzzy_perception.core.matching.window_matcher import (
     METHODS,
     PREPROCESS_MODES,
     MatcherConfig,
     MatcherConfigError,
 )
+from stereo_fuzzy_perception.core.rig_pose import CameraPoseSource
+from stereo_fuzzy_perception.nodes.rig_parameters import RigSettings
 
 _DEFAULT = MatcherConfig()
+AUTO_DISPARITY_RANGE = 0
+"""disparity_range value that asks for the range derived from the geometry."""
 
 
 @dataclass(frozen=True)
@@ -43,11 +58,13 @@ class CorrelationSettings:
     window_size: int = parameter(
         _DEFAULT.window_size, 'Side of the square correlation window [px], odd', 3, 31)
     min_disparity: int = parameter(
-        _DEFAULT.min_disparity, 'Smallest disparity searched [px] (left x minus right x)',
-        -512, 512)
+        _DEFAULT.min_disparity, 'Smallest disparity searched [px] (left x minus right x); '
+        'unused while disparity_range is 0', -512, 512)
     disparity_range: int = parameter(
-        _DEFAULT.disparity_range, 'Number of disparities searched [px]; the largest is '
-        'min_disparity + disparity_range - 1', 1, 512)
+        AUTO_DISPARITY_RANGE, 'Number of disparities searched [px]; the largest is '
+        'min_disparity + disparity_range - 1. 0 = derive both from the calibration, the rig '
+        'pose and the workspace box (the disparities of the box in view of both cameras, '
+        f'{MARGIN_PX} px margin)', 0, 512)
     min_score: float = parameter(
         _DEFAULT.min_score, 'Lowest accepted correlation score at the best disparity [-]',
         -1.0, 1.0)
@@ -83,6 +100,18 @@ class CorrelationSettings:
     error_log_period_s: float = parameter(
         5.0, 'Shortest interval between two error logs of the same kind [s]', 0.0, 3600.0,
         read_only=True)
+    # --- where the workspace is, for disparity_range 0 (the fuzzy node's same declarations)
+    world: WorldSettings = parameter_group(WorldSettings, prefix='')
+    rig_pose_file: str = parameter(
+        '', 'Pose file with the left camera optical frame in world (the form '
+        'static_transform_publisher takes); overrides the rig.* pose numbers; empty = use them',
+        read_only=True)
+    rig: RigSettings = parameter_group(RigSettings)
+
+    @property
+    def derives_disparities(self) -> bool:
+        """True when the disparity search range is derived from the geometry."""
+        return self.disparity_range == AUTO_DISPARITY_RANGE
 
     def matcher_config(self) -> MatcherConfig:
         """Return the matcher configuration these settings describe.
@@ -92,11 +121,28 @@ class CorrelationSettings:
         """
         return MatcherConfig(
             method=self.method, window_size=self.window_size, min_disparity=self.min_disparity,
-            disparity_range=self.disparity_range, min_score=self.min_score,
+            disparity_range=(_DEFAULT.disparity_range if self.derives_disparities
+                             else self.disparity_range),
+            min_score=self.min_score,
             texture_threshold=self.texture_threshold, uniqueness_ratio=self.uniqueness_ratio,
             lr_check_max_diff=self.lr_check_max_diff, subpixel=self.subpixel,
             preprocess=self.preprocess,
             roi=(self.roi.x, self.roi.y, self.roi.width, self.roi.height))
+
+    def with_derived_disparities(self, calibration: StereoCalibration) -> MatcherConfig:
+        """Return the matcher configuration searching the workspace box's disparities.
+
+        Raises:
+            DisparityRangeError: When no part of the box is in view of both cameras.
+            RigPoseError: When the pose file or the rig's baseline does not fit the calibration.
+        """
+        pose = CameraPoseSource.from_settings(self.rig.stereo_rig(), self.rig_pose_file,
+                                              self.world.world_frame)
+        derived = workspace_disparity_range(calibration, pose.world_from_camera(calibration),
+                                            self.world.workspace_min_m,
+                                            self.world.workspace_max_m)
+        return dataclasses.replace(self.matcher_config(), min_disparity=derived.min_disparity,
+                                   disparity_range=derived.disparity_range)
 
     def problem(self) -> str | None:
         """Return why these settings make no valid matcher configuration, or None."""

@@ -35,6 +35,7 @@ from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
 from stereo_fuzzy_perception.core.best_point import correlation_area
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     DEGENERATE_AREA,
+    NO_OBJECT,
     NO_POINTS,
     NO_RULE_FIRED,
     STATUS_OK,
@@ -73,8 +74,8 @@ DIAGNOSTICS_TOPIC = '/diagnostics'
 TF_STATIC_TOPIC = '/tf_static'
 MALFORMED_INPUT = 'malformed_input'
 RIG_MISMATCH = 'rig_mismatch'
-REFUSAL_REASONS = (NO_POINTS, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED, MALFORMED_INPUT,
-                   RIG_MISMATCH)
+REFUSAL_REASONS = (NO_POINTS, NO_OBJECT, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED,
+                   MALFORMED_INPUT, RIG_MISMATCH)
 ERROR_THROTTLE_S = 5.0
 HINT_THROTTLE_S = 60.0
 

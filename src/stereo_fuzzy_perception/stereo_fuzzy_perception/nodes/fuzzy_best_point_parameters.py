@@ -29,19 +29,28 @@ class FuzzyBestPointSettings:
         '', 'Weights (.npz) of the neural_network selector; empty = data/neural_baseline.npz')
     # --- world frame and workspace box (shared with gantry_driver_node)
     world: WorldSettings = parameter_group(WorldSettings, prefix='')
-    # --- correlation area (step 1)
-    surface_margin_m: float = parameter(
-        _AREA.surface_margin_m, 'Object points must be this far above the work surface z = 0 '
-        '[m]', 0.0, 0.05)
-    cluster_gap_m: float = parameter(
-        _AREA.cluster_gap_m, 'Cell size of the clustering grid: points closer are joined [m]',
-        0.001, 0.1)
-    keep_largest_cluster: bool = parameter(
-        _AREA.keep_largest_cluster,
-        'Keep only the largest cluster of object points (else all of them)')
-    top_band_m: float = parameter(
-        _AREA.top_band_m, 'Height of the band below the object top that forms the correlation '
-        'area [m]', 0.0005, 0.1)
+    # --- correlation area (step 1): thresholds in sigmas of each point's own height noise
+    surface_search_m: float = parameter(
+        _AREA.surface_search_m, 'The work surface plane is measured from the points within this '
+        'of z = 0 [m]', 0.001, 0.2)
+    surface_margin_sigmas: float = parameter(
+        _AREA.surface_margin_sigmas, 'Object candidates stand this many sigmas of their height '
+        'noise above the measured surface', 0.5, 50.0)
+    object_sigmas: float = parameter(
+        _AREA.object_sigmas, 'A region of candidates is an object when its median height is '
+        'this many sigmas (else: no object, no best point)', 0.5, 100.0)
+    top_band_sigmas: float = parameter(
+        _AREA.top_band_sigmas, "The correlation area is the object's points within this many "
+        'sigmas of its top face', 0.1, 20.0)
+    smoothing_px: float = parameter(
+        _AREA.smoothing_px, 'Heights are averaged over a square of this side in the left image '
+        'before the object test [px]', 1.0, 200.0)
+    min_disparity_sigma_px: float = parameter(
+        _AREA.min_disparity_sigma_px,
+        'Lower bound of the disparity noise measured on the surface [px]', 0.001, 5.0)
+    assumed_disparity_sigma_px: float = parameter(
+        _AREA.assumed_disparity_sigma_px,
+        'Disparity noise when too few surface points are seen to measure it [px]', 0.001, 5.0)
     min_points: int = parameter(
         _AREA.min_points, 'Fewer points in the correlation area means no best point',
         1, 1_000_000)
@@ -60,8 +69,11 @@ class FuzzyBestPointSettings:
         """Return how the correlation area is found, as these settings describe."""
         return AreaConfig(
             workspace_min=self.world.workspace_min_m, workspace_max=self.world.workspace_max_m,
-            surface_margin_m=self.surface_margin_m, cluster_gap_m=self.cluster_gap_m,
-            keep_largest_cluster=self.keep_largest_cluster, top_band_m=self.top_band_m,
+            surface_search_m=self.surface_search_m,
+            surface_margin_sigmas=self.surface_margin_sigmas, object_sigmas=self.object_sigmas,
+            top_band_sigmas=self.top_band_sigmas, smoothing_px=self.smoothing_px,
+            min_disparity_sigma_px=self.min_disparity_sigma_px,
+            assumed_disparity_sigma_px=self.assumed_disparity_sigma_px,
             min_points=self.min_points)
 
     def problem(self) -> str | None:

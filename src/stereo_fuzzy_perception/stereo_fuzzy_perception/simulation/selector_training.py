@@ -51,7 +51,8 @@ class TrainingSet:
     Attributes:
         ratios: (S, 4) r_k.
         centres: (S, 4, 3) area centres in `world` [m].
-        counts: (S, 4) points per area.
+        counts: (S, 4) weight of each area's points (FourAreas.weights; points per area
+            when the points are unweighted).
         top_height: (S,) [m].
         features: (S, F) neural-network inputs.
         nn_base: (S, 3) the point the network's offset is added to [m].
@@ -94,7 +95,7 @@ def build_training_set(scenes: Iterable[SyntheticScene], config: AreaConfig) -> 
             continue
         rows['ratios'].append(areas.ratio)
         rows['centres'].append(areas.centres)
-        rows['counts'].append(areas.counts)
+        rows['counts'].append(areas.weights)  # what inference weights the centres by
         rows['top_height'].append(np.array(area.top_height))
         rows['features'].append(neural_features(area, areas))
         rows['nn_base'].append(neural_base_point(area, areas))

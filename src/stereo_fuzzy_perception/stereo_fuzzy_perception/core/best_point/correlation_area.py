@@ -1,21 +1,21 @@
 """The correlation area of the chapter's section 4: object points, border points, four areas.
 
-ROS-free: numba kernels for the passes over the points (a decision at 100k points must stay
-under 5 ms on one core; numpy made a pass per operation), scipy.ndimage for the connected
-components of the (small) clustering grid. Steps 1-3 of the package README:
+ROS-free: numpy, scipy.ndimage and a numba kernel for the pass over every point. Steps 1-3 of
+the package README:
 
-1. Matched points go to `world` with the rig's pose; those inside the workspace box and at least
-   `surface_margin_m` above the work surface are the object's points. Separated clusters (cells of
-   side `cluster_gap_m`, 26-connected) are counted and, if asked, only the largest is kept. The
-   gantry approaches from above, so the correlation area is the object's top: the points within
-   `top_band_m` below the robust top (the 99th percentile of the cluster's heights up to its
-   highest dense 1 mm height level, so sparse wrong matches above the object do not lift it).
-   The top height is the median height of the correlation area's points.
+1. Matched points go to `world` with the rig's pose and are kept inside the workspace box
+   (extended `surface_search_m` below its floor). The work surface is measured from them
+   (work_surface.py: a robust plane fit), with the pair's disparity noise sigma_d; heights are
+   distances from that plane, each with its own sigma_h = sigma_d * height_per_disparity. The
+   object is the region of the left image's match grid that stands out of the surface in
+   sigmas, and the correlation area is its top face (object_segmentation.py). The top height
+   is that face's height above the measured surface (z = 0 of `world` by definition), so a
+   rig pose a few millimetres off does not move it.
 2. Border points (4.1): the points of minimum and maximum u and v in the left rectified image.
 3. Four areas (Fig. 4): the area's bounding box in the left rectified image split through its
-   middle: 1 top-left, 2 bottom-left, 3 top-right, 4 bottom-right. For each area its centre (mean
-   of its points in 3D and in both images), d1 and d2 (pixel distance of that centre from the
-   principal point of the left and right rectified image) and r = d1 / d2.
+   middle: 1 top-left, 2 bottom-left, 3 top-right, 4 bottom-right. For each area its centre
+   (weighted mean of its points in 3D and in both images), d1 and d2 (pixel distance of that
+   centre from the principal point of the left and right rectified image) and r = d1 / d2.
 """
 
 from __future__ import annotations
@@ -25,29 +25,49 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-from scipy import ndimage
 
+from stereo_fuzzy_perception.core.best_point.object_segmentation import (
+    choose_object,
+    grid_step,
+    grown_region,
+    image_regions,
+    on_pixel_grid,
+    smoothed_on_grid,
+)
+from stereo_fuzzy_perception.core.best_point.work_surface import (
+    INLIER_SIGMAS,
+    MAD_SCALE,
+    SURFACE_ASSUMED,
+    SurfacePlane,
+    fit_work_surface,
+    height_per_disparity,
+)
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 
 # Status codes: why no best point could be chosen (also the diagnostics keys).
 STATUS_OK = 'ok'
 NO_POINTS = 'no_points'
+NO_OBJECT = 'no_object'
 TOO_FEW_POINTS = 'too_few_points'
 DEGENERATE_AREA = 'degenerate_area'
 NO_RULE_FIRED = 'no_rule_fired'
 
-TOP_QUANTILE = 0.99
-"""The robust top of a cluster: this quantile of its heights below the densest top level (the
-value of rank floor(0.99 (n - 1)), no interpolation); see _robust_top."""
+OBJECT_TOP_SIGMAS = 2.0
+"""An object's top face stands at least this many sigmas of its points above the surface
+(object_segmentation.choose_object)."""
 
-TOP_BIN_M = 0.001
-"""Height bins [m] in which the object's top face is looked for (_robust_top)."""
+MIN_OBJECT_AREA_PX = 200.0
+"""An object covers at least this much of the left image [px^2] (a square of 14 px): a
+pattern of the surface's errors the size of a correlation window is not one."""
 
-TOP_DENSE_SHARE = 0.1
-"""A height bin is part of the object when it holds at least this share of the fullest bin."""
+FACE_LEVEL = 0.5
+"""A point of the face has an averaged height of at least this share of the top's."""
 
-MAX_GRID_CELLS = 4_000_000
-"""Upper bound on the clustering grid; beyond it the cells grow (recorded in cluster_cell_m)."""
+HALF_NORMAL_MEDIAN = 0.6745
+"""Median of |N(0, 1)|."""
+
+SURFACE_AROUND_M = 0.1
+"""The work surface is measured this far around the workspace box too [m]."""
 
 BORDER_PAIRS = ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))
 """Pairs of border points (min u, max u, min v, max v) whose Eq. 9 distances are reported."""
@@ -59,25 +79,36 @@ class CorrelationAreaError(ValueError):
 
 @dataclass(frozen=True)
 class AreaConfig:
-    """How the correlation area is found (step 1).
+    """How the correlation area is found (step 1). Thresholds are in sigmas of each point's
+    own height noise, so one set of values holds at 0.3 m and at 0.9 m.
 
     Attributes:
         workspace_min: Lower corner (x, y, z) of the workspace box in `world` [m].
         workspace_max: Upper corner (x, y, z) of the workspace box in `world` [m].
-        surface_margin_m: Points must be this far above the work surface (z = 0) [m].
-        cluster_gap_m: Cell size of the clustering grid [m]: points closer than this are always
-            joined, clusters further apart than 2*sqrt(3) times it are always separate.
-        keep_largest_cluster: Keep only the largest cluster (else all valid points).
-        top_band_m: Height of the band below the object's top that forms the area [m].
+        surface_search_m: The work surface is looked for within this of z = 0 [m] (how far
+            the rig pose may be off at the edge of the view).
+        surface_margin_sigmas: Object candidates stand this many sigmas above the surface.
+        object_sigmas: A region is an object when its median height, averaged over
+            smoothing_px, is this many sigmas of that average (and its top
+            OBJECT_TOP_SIGMAS of one point's).
+        top_band_sigmas: The correlation area is the object's points within this many sigmas
+            of its top face.
+        smoothing_px: Side of the image square over which heights are averaged before the
+            object test [px] (a few correlation windows).
+        min_disparity_sigma_px: Lower bound of the measured disparity noise [px].
+        assumed_disparity_sigma_px: Disparity noise when the surface cannot be measured [px].
         min_points: Fewer points in the correlation area means no best point.
     """
 
     workspace_min: tuple[float, float, float] = (0.0, 0.0, 0.0)
     workspace_max: tuple[float, float, float] = (0.40, 0.30, 0.20)
-    surface_margin_m: float = 0.003
-    cluster_gap_m: float = 0.01
-    keep_largest_cluster: bool = True
-    top_band_m: float = 0.004
+    surface_search_m: float = 0.02
+    surface_margin_sigmas: float = 3.0
+    object_sigmas: float = 5.0
+    top_band_sigmas: float = 2.0
+    smoothing_px: float = 15.0
+    min_disparity_sigma_px: float = 0.03
+    assumed_disparity_sigma_px: float = 0.2
     min_points: int = 20
 
     def problem(self) -> str | None:
@@ -86,15 +117,20 @@ class AreaConfig:
                                                strict=True)):
             if not low < high:
                 return (f'workspace box axis {"xyz"[axis]}: min {low} must be below max {high}')
-        if self.cluster_gap_m <= 0.0:
-            return f'cluster_gap_m={self.cluster_gap_m} must be positive'
-        if self.top_band_m <= 0.0:
-            return f'top_band_m={self.top_band_m} must be positive'
-        if self.surface_margin_m < 0.0:
-            return f'surface_margin_m={self.surface_margin_m} must not be negative'
+        for name in ('surface_search_m', 'surface_margin_sigmas', 'object_sigmas',
+                     'top_band_sigmas', 'smoothing_px', 'min_disparity_sigma_px',
+                     'assumed_disparity_sigma_px'):
+            if not getattr(self, name) > 0.0:
+                return f'{name}={getattr(self, name)} must be positive'
+        if self.object_sigmas < self.surface_margin_sigmas:
+            return (f'object_sigmas={self.object_sigmas} must not be below '
+                    f'surface_margin_sigmas={self.surface_margin_sigmas}')
         if self.min_points < 1:
             return f'min_points={self.min_points} must be at least 1'
         return None
+
+
+ASSUMED_SURFACE = SurfacePlane(SURFACE_ASSUMED, 0.0, 0.0, 0.0, math.nan, 0)
 
 
 @dataclass(frozen=True)
@@ -105,16 +141,22 @@ class CorrelationArea:
         status: STATUS_OK or a status code.
         reason: Human-readable reason when status is not ok ('' when ok).
         points_in: Matches received.
-        points_valid: Finite, inside the workspace box, above the work surface.
-        clusters_found: Separated clusters among the valid points.
+        points_valid: Finite, in front of the cameras, inside the workspace box or on the
+            surface around it (SURFACE_AROUND_M).
+        clusters_found: Regions of the image grid standing out of the surface noise.
         points_used: Points of the correlation area.
-        top_height: World z of the object's top [m] (NaN when unknown).
+        top_height: Height of the object's top face above the measured work surface [m]
+            (NaN when unknown): its world z, the surface being z = 0 of `world`, whatever
+            small error the rig pose has.
         xyz_world: (M, 3) area points in `world` [m].
         u_left: (M,) [px].
         v_left: (M,) [px].
         u_right: (M,) [px].
         score: (M,) correlation scores.
-        cluster_cell_m: Cell size the clustering used [m].
+        weight: (M,) share of the top face each point stands for (mean 1): matches are
+            denser where the face is nearer, so an unweighted mean leans toward the cameras.
+        surface: The work surface and the pair's disparity noise.
+        object_height_sigmas: Median height of the object's region in sigmas (NaN: none).
     """
 
     status: str
@@ -129,7 +171,13 @@ class CorrelationArea:
     v_left: np.ndarray
     u_right: np.ndarray
     score: np.ndarray
-    cluster_cell_m: float
+    weight: np.ndarray | None = None
+    surface: SurfacePlane = ASSUMED_SURFACE
+    object_height_sigmas: float = math.nan
+
+    def point_weights(self) -> np.ndarray:
+        """Return the points' weights (ones when none were given)."""
+        return np.ones(len(self.u_left)) if self.weight is None else self.weight
 
     @property
     def ok(self) -> bool:
@@ -196,147 +244,30 @@ def warm_up() -> None:
     grid = np.stack(np.meshgrid(np.arange(0.1, 0.15, 0.01), np.arange(0.1, 0.15, 0.01),
                                 [0.02]), axis=-1).reshape(-1, 3)
     pixels = np.arange(len(grid), dtype=float)
-    area = find_correlation_area(MatchedPoints(grid, pixels, pixels, pixels, pixels), np.eye(4),
-                                 AreaConfig(min_points=1))
+    area = find_correlation_area(MatchedPoints(grid, pixels, pixels, pixels - 10.0, pixels),
+                                 np.eye(4), AreaConfig(min_points=1))
+    if not area.ok:
+        area = CorrelationArea(STATUS_OK, '', len(grid), len(grid), 1, len(grid), 0.02, grid,
+                               pixels, pixels, pixels, pixels, np.ones(len(grid)))
     split_into_areas(area, (0.0, 0.0), (0.0, 0.0))
 
 
-@numba.njit(cache=True, nogil=True)
-def _count_cells(world: np.ndarray, low: np.ndarray, cell: float, cells: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Return each point's cell (linear index, C order) and the points per cell (a grid)."""
-    count = world.shape[1]
-    linear = np.empty(count, np.int64)
-    per_cell = np.zeros((cells[0], cells[1], cells[2]), np.int64)
-    flat = per_cell.reshape(-1)
-    scale = 1.0 / cell
-    for index in range(count):
-        code = 0
-        for axis in range(3):
-            step = min(int((world[axis, index] - low[axis]) * scale), cells[axis] - 1)
-            code = code * cells[axis] + step
-        linear[index] = code
-        flat[code] += 1
-    return linear, per_cell
-
-
-def _label_clusters(world: np.ndarray, low: np.ndarray, high: np.ndarray, gap: float
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Cluster points on a grid: occupied cells that touch (26-connected) form one cluster.
-
-    Args:
-        world: (3, N) point coordinates [m], one row per axis (N > 0).
-        low: (3,) smallest coordinates of the points [m].
-        high: (3,) largest coordinates of the points [m].
-        gap: Cell size [m].
-
-    Returns:
-        (each point's cell (linear index), the label of each cell: 1..n (0: empty), (n,) points
-        per cluster, cell size [m]).
-    """
-    extent = high - low
-    cell = gap
-    cells = np.floor(extent / cell).astype(np.int64) + 1
-    if float(np.prod(cells.astype(float))) > MAX_GRID_CELLS:
-        cell = max(gap, float(np.cbrt(np.prod(extent + gap) / MAX_GRID_CELLS)) * 1.01)
-        cells = np.floor(extent / cell).astype(np.int64) + 1
-    linear, per_cell = _count_cells(world, low, cell, cells)
-    cell_labels, count = ndimage.label(per_cell > 0, structure=np.ones((3, 3, 3), dtype=bool))
-    sizes = np.bincount(cell_labels.reshape(-1), weights=per_cell.reshape(-1),
-                        minlength=count + 1)[1:].astype(np.int64)
-    return linear, cell_labels.reshape(-1), sizes, cell
-
-
-@numba.njit(cache=True, nogil=True)
-def _top_band(world: np.ndarray, point_cells: np.ndarray, cell_labels: np.ndarray, keep: int,
-              band_m: float) -> tuple[np.ndarray, float]:
-    """Return (columns of `world` in the top band, median height of the band [m]).
-
-    Only points in cells labelled `keep` count (all points when keep is 0). The top face is
-    the densest height level; wrong matches above it are sparse. A plain 99 % quantile was
-    lifted by them whenever they were more than 1 % of the points (measured: a top 4-8 mm too
-    high, and a top band that missed the face). So the points are binned by height
-    (TOP_BIN_M), the highest bin holding at least TOP_DENSE_SHARE of the fullest bin ends the
-    object, and the top is the TOP_QUANTILE of the heights in the bins up to that one (the
-    value of rank floor(q (n - 1)), no interpolation). The band is the points within band_m
-    below the top. Compactions are written without branches (write always, advance when kept):
-    whether a point is kept is hard to predict.
-    """
-    members = np.empty(world.shape[1], np.int64)
-    heights = np.empty(world.shape[1])
-    lowest, highest = np.inf, -np.inf
-    count = 0
-    for index in range(world.shape[1]):
-        height = world[2, index]
-        member = keep == 0 or cell_labels[point_cells[index]] == keep
-        members[count] = index
-        heights[count] = height
-        lowest = min(lowest, height) if member else lowest
-        highest = max(highest, height) if member else highest
-        count += member
-    bins = np.empty(count, np.int64)
-    per_bin = np.zeros(int((highest - lowest) / TOP_BIN_M) + 1, np.int64)
-    for slot in range(count):
-        bins[slot] = int((heights[slot] - lowest) / TOP_BIN_M)
-        per_bin[bins[slot]] += 1
-    top_bin = len(per_bin) - 1
-    dense = TOP_DENSE_SHARE * per_bin.max()
-    while per_bin[top_bin] < dense:
-        top_bin -= 1
-    # The quantile's rank falls in one bin (bins are ordered by height): sort only that bin.
-    rank = int(TOP_QUANTILE * (per_bin[:top_bin + 1].sum() - 1))
-    rank_bin = 0
-    while rank >= per_bin[rank_bin]:
-        rank -= per_bin[rank_bin]
-        rank_bin += 1
-    in_rank_bin = np.empty(per_bin[rank_bin])
-    filled = 0
-    for slot in range(count):
-        if bins[slot] == rank_bin:
-            in_rank_bin[filled] = heights[slot]
-            filled += 1
-    floor = np.partition(in_rank_bin, rank)[rank] - band_m
-    used = 0
-    for slot in range(count):
-        height = heights[slot]
-        members[used] = members[slot]
-        heights[used] = height
-        used += height >= floor
-    return members[:used], float(np.median(heights[:used]))
-
-
-@numba.njit(cache=True, nogil=True)
-def _gather_area(world: np.ndarray, selected: np.ndarray, band: np.ndarray, u_left: np.ndarray,
-                 v_left: np.ndarray, u_right: np.ndarray, score: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Return the band's points: world (M, 3) and the input columns as float64 (M,)."""
-    used = len(band)
-    xyz = np.empty((used, 3))
-    columns = np.empty((4, used))
-    for slot in range(used):
-        column = band[slot]
-        for axis in range(3):
-            xyz[slot, axis] = world[axis, column]
-        point = selected[column]
-        columns[0, slot] = u_left[point]
-        columns[1, slot] = v_left[point]
-        columns[2, slot] = u_right[point]
-        columns[3, slot] = score[point]
-    return xyz, columns[0], columns[1], columns[2], columns[3]
-
-
 def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
-                          config: AreaConfig) -> CorrelationArea:
+                          config: AreaConfig, disparity_shift_px: float = 0.0
+                          ) -> CorrelationArea:
     """Select the object's top surface among matched points (step 1).
 
     Args:
         points: Matched points, xyz in the camera frame [m].
         world_from_camera: 4x4 pose of that camera frame in `world`.
-        config: Workspace box, margins, clustering and band.
+        config: Workspace box and thresholds.
+        disparity_shift_px: cx_left - cx_right of the rectified projections [px]
+            (0 for a calibration rectified with zero disparity at infinity).
 
     Returns:
-        The correlation area; status explains when it has too few points. Never raises for
-        bad points: NaN and infinite rows are ignored.
+        The correlation area; status explains when there is none: no points, no object
+        standing out of the surface, too few points on its top. Never raises for bad points:
+        NaN and infinite rows are ignored.
 
     Raises:
         CorrelationAreaError: When the configuration is unusable.
@@ -353,32 +284,100 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                (points.u_left, points.v_left, points.u_right, points.score)]
     low = np.array(config.workspace_min, dtype=float)
     high = np.array(config.workspace_max, dtype=float)
-    low[2] = max(low[2], config.surface_margin_m)
+    low[2] -= config.surface_search_m
+    # The surface around the box measures the plane too (its tilt above all).
+    low[:2] -= SURFACE_AROUND_M
+    high[:2] += SURFACE_AROUND_M
     # world: (3, N), one contiguous row per axis
-    world, selected, smallest, largest = _object_points(xyz, pose, low, high, *columns)
+    world, selected, _, _ = _object_points(xyz, pose, low, high, *columns)
+    u_left, v_left, u_right, score = (column[selected].astype(float) for column in columns)
+    disparity = u_left - u_right - disparity_shift_px
+    in_front = disparity > 0.0
+    if not np.all(in_front):
+        world, selected = world[:, in_front], selected[in_front]
+        u_left, v_left, u_right, score, disparity = (
+            column[in_front] for column in (u_left, v_left, u_right, score, disparity))
     valid = len(selected)
 
-    def refused(status: str, why: str, clusters: int = 0, cell: float = math.nan
-                ) -> CorrelationArea:
+    def refused(status: str, why: str, surface: SurfacePlane = ASSUMED_SURFACE,
+                regions: int = 0, sigmas: float = math.nan) -> CorrelationArea:
         empty = np.zeros(0)
-        return CorrelationArea(status, why, points_in, valid, clusters, 0, math.nan,
-                               np.zeros((0, 3)), empty, empty, empty, empty, cell)
+        return CorrelationArea(status, why, points_in, valid, regions, 0, math.nan,
+                               np.zeros((0, 3)), empty, empty, empty, empty, empty, surface,
+                               sigmas)
 
     if valid == 0:
-        return refused(NO_POINTS, f'none of {points_in} matched points is finite, inside the '
-                                  'workspace box and above the work surface')
-    point_cells, cell_labels, sizes, cell = _label_clusters(world, smallest, largest,
-                                                            config.cluster_gap_m)
-    clusters = len(sizes)
-    keep = int(np.argmax(sizes)) + 1 if config.keep_largest_cluster and clusters > 1 else 0
-    band, top_height = _top_band(world, point_cells, cell_labels, keep, config.top_band_m)
+        return refused(NO_POINTS, f'none of {points_in} matched points is finite, in front of '
+                                  'the cameras and inside the workspace box')
+    camera_centre = pose[:3, 3]
+    surface = fit_work_surface(
+        world, height_per_disparity(world, camera_centre, disparity, np.array([0.0, 0.0, 1.0])),
+        config.surface_search_m, config.min_disparity_sigma_px,
+        config.assumed_disparity_sigma_px)
+    per_px = height_per_disparity(world, camera_centre, disparity, surface.normal)
+    sigma = surface.disparity_sigma_px * per_px
+    heights = surface.heights(world)
+    # Heights in disparity pixels have the same noise everywhere; averaged over a square of
+    # the image they show an object that one point's noise would hide, and the surface's
+    # noise after the same averaging (MAD of the surface points) is the unit of the test.
+    residual_px = heights / per_px
+    step = grid_step(u_left, v_left)
+    smoothed = smoothed_on_grid(u_left, v_left, residual_px, step, config.smoothing_px)
+    on_surface = np.abs(residual_px) <= INLIER_SIGMAS * surface.disparity_sigma_px
+    smoothed_sigma = max(MAD_SCALE * float(np.median(np.abs(smoothed[on_surface])))
+                         if np.any(on_surface) else surface.disparity_sigma_px,
+                         config.min_disparity_sigma_px)
+    z_scores = smoothed / smoothed_sigma
+    (x_low, y_low, _), (x_high, y_high, _) = config.workspace_min, config.workspace_max
+    in_box = (world[0] >= x_low) & (world[0] <= x_high) & (world[1] >= y_low) & (
+        world[1] <= y_high)
+    candidate = ((z_scores > config.surface_margin_sigmas) & in_box
+                 & (world[2] >= config.workspace_min[2]))
+    labels, regions = image_regions(u_left, v_left, candidate, step)
+    fewest = max(config.min_points, math.ceil(MIN_OBJECT_AREA_PX / step ** 2))
+    found = choose_object(labels, regions, z_scores, heights, sigma, config.object_sigmas,
+                          OBJECT_TOP_SIGMAS, fewest)
+    if found.label == 0:
+        detail = ('no point stands out of it' if regions == 0 else
+                  f'{regions} regions stand out of it, the largest ({found.points} points) by '
+                  f'a median {found.median_sigmas:.1f} sigmas; an object needs '
+                  f'object_sigmas={config.object_sigmas:g}, a top {OBJECT_TOP_SIGMAS:g} sigmas '
+                  f'of its points high and {fewest} points')
+        return refused(NO_OBJECT, f'no object on the work surface ({surface.source}, '
+                                  f'disparity noise {surface.disparity_sigma_px:.2f} px): '
+                                  + detail, surface, regions, found.median_sigmas)
+    member = labels == found.label
+    top = found.top_m
+    # The face: points near the region, within the band of the top, whose neighbourhood
+    # stands at least half as high. Half height is where the averaging square sits half on
+    # the face, so the face's rim is found where it is, not where noise cut the region; the
+    # surface around a low object and the foot of a side wall stay out even when their noise
+    # reaches the band.
+    near = grown_region(u_left, v_left, member, step, config.smoothing_px)
+    # The face's own noise: a textured top can be matched worse than the surface (and has
+    # systematic errors of its own); its spread above the top, where no side wall lies, is
+    # half of a normal distribution.
+    above = residual_px[member & (heights > top)] - top / per_px[member & (heights > top)]
+    face_px = float(np.median(above)) / HALF_NORMAL_MEDIAN if len(above) >= 10 else 0.0
+    band_sigma = max(surface.disparity_sigma_px, face_px) * per_px
+    band = np.flatnonzero(near & in_box & (heights - top <= config.top_band_sigmas * band_sigma)
+                          & (top - heights <= 0.5 * config.top_band_sigmas * band_sigma)
+                          & (smoothed * per_px >= FACE_LEVEL * top))
     used = len(band)
     if used < config.min_points:
-        return refused(TOO_FEW_POINTS, f'{used} points in the correlation area, need '
-                                       f'min_points={config.min_points}', clusters, cell)
-    xyz_world, u_left, v_left, u_right, score = _gather_area(world, selected, band, *columns)
-    return CorrelationArea(STATUS_OK, '', points_in, valid, clusters, used, top_height,
-                           xyz_world, u_left, v_left, u_right, score, cell)
+        return refused(TOO_FEW_POINTS, f"{used} points on the object's top face, need "
+                                       f'min_points={config.min_points}', surface, regions,
+                       found.median_sigmas)
+    xyz_world = np.ascontiguousarray(world[:, band].T)
+    # A match on the pixel grid stands for the patch of the face its pixel sees,
+    # Z_rect^3 / (f^2 |n . v|): |n . v| is the same for every point of a level face and Z_rect
+    # is f B / d. Matches anywhere else (geometric scenes) are taken as spread evenly.
+    weight = disparity[band] ** -3.0 if on_pixel_grid(u_left) else np.ones(used)
+    weight /= weight.mean()
+    return CorrelationArea(STATUS_OK, '', points_in, valid, regions, used,
+                           float(np.median(heights[band])), xyz_world, u_left[band],
+                           v_left[band], u_right[band], score[band], weight, surface,
+                           found.median_sigmas)
 
 
 @dataclass(frozen=True)
@@ -399,6 +398,7 @@ class FourAreas:
         centres_v_left: (4,) [px].
         centres_u_right: (4,) [px].
         counts: (4,) points per area.
+        weights: (4,) sum of the points' weights per area (CorrelationArea.weight).
         d1: (4,) distance of each centre from the left principal point [px].
         d2: (4,) distance of each centre from the right principal point [px].
         ratio: (4,) r = d1 / d2.
@@ -414,6 +414,7 @@ class FourAreas:
     centres_v_left: np.ndarray
     centres_u_right: np.ndarray
     counts: np.ndarray
+    weights: np.ndarray
     d1: np.ndarray
     d2: np.ndarray
     ratio: np.ndarray
@@ -424,10 +425,11 @@ class FourAreas:
         return self.status == STATUS_OK
 
     def union_centre(self, areas: tuple[int, ...]) -> np.ndarray:
-        """Return the centre [m] of the union of `areas` (numbered 1..4): count-weighted."""
+        """Return the centre [m] of the union of `areas` (numbered 1..4): weighted like its
+        points."""
         index = np.asarray(areas, dtype=int) - 1
-        counts = self.counts[index].astype(float)
-        return np.asarray((counts @ self.centres[index]) / counts.sum())
+        weights = self.weights[index]
+        return np.asarray((weights @ np.nan_to_num(self.centres[index])) / weights.sum())
 
 
 @numba.njit(cache=True, nogil=True)
@@ -444,14 +446,14 @@ def _precedes(first: int, second: int, u: np.ndarray, v: np.ndarray, world: np.n
 
 
 @numba.njit(cache=True, nogil=True)
-def _area_sums(u: np.ndarray, v: np.ndarray, u_right: np.ndarray, world: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+def _area_sums(u: np.ndarray, v: np.ndarray, u_right: np.ndarray, world: np.ndarray,
+               weight: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
     """Border points and per-area sums of a correlation area in two passes.
 
     Returns:
         border (4,): indices of min u, max u, min v, max v, ties broken by the smallest
             (u, v, x, y, z) so that input order cannot matter; counts (4,) per area; sums
-            (4, 6) of x, y, z, u, v, u_right per area; u_mid; v_mid.
+            (4, 7) of weighted x, y, z, u, v, u_right and the weights per area; u_mid; v_mid.
     """
     u_min = u_max = u[0]
     v_min = v_max = v[0]
@@ -463,7 +465,7 @@ def _area_sums(u: np.ndarray, v: np.ndarray, u_right: np.ndarray, world: np.ndar
     extremes = (u_min, u_max, v_min, v_max)
     border = np.full(4, -1, np.int64)
     counts = np.zeros(4, np.int64)
-    sums = np.zeros((4, 6))
+    sums = np.zeros((4, 7))
     for index in range(len(u)):
         for slot in range(4):
             key = u[index] if slot < 2 else v[index]
@@ -472,11 +474,13 @@ def _area_sums(u: np.ndarray, v: np.ndarray, u_right: np.ndarray, world: np.ndar
                 border[slot] = index
         area = 2 * int(u[index] >= u_mid) + int(v[index] >= v_mid)  # 0..3: areas 1..4
         counts[area] += 1
+        w = weight[index]
         for axis in range(3):
-            sums[area, axis] += world[index, axis]
-        sums[area, 3] += u[index]
-        sums[area, 4] += v[index]
-        sums[area, 5] += u_right[index]
+            sums[area, axis] += w * world[index, axis]
+        sums[area, 3] += w * u[index]
+        sums[area, 4] += w * v[index]
+        sums[area, 5] += w * u_right[index]
+        sums[area, 6] += w
     return border, counts, sums, u_mid, v_mid
 
 
@@ -495,12 +499,13 @@ def split_into_areas(area: CorrelationArea, left_principal: tuple[float, float],
         have NaN centres and ratios.
     """
     u, v, world = area.u_left, area.v_left, area.xyz_world
-    border, counts, sums, u_mid, v_mid = _area_sums(u, v, area.u_right, world)
+    border, counts, sums, u_mid, v_mid = _area_sums(u, v, area.u_right, world,
+                                                    area.point_weights())
     border_points = world[border]
     border_distances = np.array([math.dist(border_points[i], border_points[j])
                                  for i, j in BORDER_PAIRS])
     with np.errstate(invalid='ignore', divide='ignore'):
-        means = sums / counts[:, np.newaxis]  # NaN for an empty area
+        means = sums[:, :6] / sums[:, 6:]  # NaN for an empty area
         centres = np.ascontiguousarray(means[:, :3])
         cu, cv, cur = means[:, 3].copy(), means[:, 4].copy(), means[:, 5].copy()
         d1 = np.hypot(cu - left_principal[0], cv - left_principal[1])
@@ -516,6 +521,6 @@ def split_into_areas(area: CorrelationArea, left_principal: tuple[float, float],
             'split into four areas')
     elif not np.any(np.isfinite(ratio)):
         status, reason = DEGENERATE_AREA, 'every area centre sits on the right principal point'
-    centre = sums[:, :3].sum(axis=0) / len(u)
+    centre = sums[:, :3].sum(axis=0) / sums[:, 6].sum()
     return FourAreas(status, reason, border_points, border_distances, centre, centres, cu, cv,
-                     cur, counts, d1, d2, ratio)
+                     cur, counts, sums[:, 6].copy(), d1, d2, ratio)

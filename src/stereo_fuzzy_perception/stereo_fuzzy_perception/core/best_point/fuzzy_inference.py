@@ -110,10 +110,10 @@ def consequent_base_points(rule_base: RuleBase, centres: np.ndarray,
     Args:
         rule_base: The rules.
         centres: (..., 4, 3) area centres [m] (NaN for an empty area).
-        counts: (..., 4) points per area.
+        counts: (..., 4) weight of each area (points, or FourAreas.weights).
 
     Returns:
-        The count-weighted mean of the union's area centres; NaN when all of them are empty.
+        The weighted mean of the union's area centres; NaN when all of them are empty.
     """
     weights = (np.asarray(counts, dtype=float)[..., np.newaxis, :]
                * _rule_arrays(rule_base).consequent_areas)  # (..., L, 4)
@@ -153,7 +153,7 @@ def infer(rule_base: RuleBase, areas: FourAreas) -> FuzzyResult:
         Eq. 10 point (None if nothing fired).
     """
     degrees = membership_degrees(rule_base, areas.ratio)
-    consequents = (consequent_base_points(rule_base, areas.centres, areas.counts)
+    consequents = (consequent_base_points(rule_base, areas.centres, areas.weights)
                    + _rule_arrays(rule_base).offsets)
     strengths = firing_strengths(degrees, consequents)
     total = float(strengths.sum())

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
+    ASSUMED_SURFACE,
     DEGENERATE_AREA,
     NO_RULE_FIRED,
     STATUS_OK,
@@ -45,6 +46,7 @@ from stereo_fuzzy_perception.core.best_point.rule_base import (
     load_rule_base,
     packaged_rule_base,
 )
+from stereo_fuzzy_perception.core.best_point.work_surface import SurfacePlane
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
@@ -101,6 +103,8 @@ class BestPointDecision:
         eq10_point: (3,) Eq. 10 point before the height rule [m], or None.
         consequent_points: (L, 3) the rules' y_l [m].
         area_points_world: (M, 3) the correlation area's points in `world` [m] (for markers).
+        surface: The work surface measured from the points, and their disparity noise.
+        object_height_sigmas: Median height of the object's region in sigmas of its noise.
     """
 
     selector: str
@@ -130,6 +134,8 @@ class BestPointDecision:
     eq10_point: np.ndarray | None = None
     consequent_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     area_points_world: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    surface: SurfacePlane = ASSUMED_SURFACE
+    object_height_sigmas: float = math.nan
 
     @property
     def has_best_point(self) -> bool:
@@ -144,6 +150,11 @@ class BestPointDecision:
 def principal_point(calibration: CameraCalibration) -> tuple[float, float]:
     """Return (cx, cy) [px] of a rectified projection matrix P."""
     return float(calibration.P[0, 2]), float(calibration.P[1, 2])
+
+
+def disparity_shift(left: CameraCalibration, right: CameraCalibration) -> float:
+    """Return cx_left - cx_right of the rectified projections [px] (disparity at infinity)."""
+    return float(left.P[0, 2] - right.P[0, 2])
 
 
 @dataclass
@@ -213,7 +224,10 @@ class BestPointChooser:
                                      self.rule_base.name if self.rule_base else '')
         if self.rule_base is not None:
             decision.rule_names = [rule.name for rule in self.rule_base.rules]
-        area = find_correlation_area(points, self.world_from_camera, self.area_config)
+        area = find_correlation_area(points, self.world_from_camera, self.area_config,
+                                     disparity_shift(left, right))
+        decision.surface = area.surface
+        decision.object_height_sigmas = area.object_height_sigmas
         decision.points_in, decision.points_valid = area.points_in, area.points_valid
         decision.clusters_found, decision.points_used = area.clusters_found, area.points_used
         decision.top_height = area.top_height
@@ -283,7 +297,7 @@ def area_features(points: MatchedPoints, left: CameraCalibration, right: CameraC
                   world_from_camera: np.ndarray, config: AreaConfig
                   ) -> tuple[CorrelationArea, FourAreas | None]:
     """Return steps 1-3 for one scene (for training): the area and its four areas, if any."""
-    area = find_correlation_area(points, world_from_camera, config)
+    area = find_correlation_area(points, world_from_camera, config, disparity_shift(left, right))
     if not area.ok:
         return area, None
     areas = split_into_areas(area, principal_point(left), principal_point(right))
@@ -291,4 +305,4 @@ def area_features(points: MatchedPoints, left: CameraCalibration, right: CameraC
 
 
 __all__ = ['DEGENERATE_AREA', 'SELECTORS', 'BestPointChooser', 'BestPointDecision',
-           'SelectorError', 'area_features', 'principal_point']
+           'SelectorError', 'area_features', 'disparity_shift', 'principal_point']

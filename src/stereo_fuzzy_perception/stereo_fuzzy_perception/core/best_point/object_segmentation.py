@@ -1,0 +1,238 @@
+"""The object among the points above the work surface, and its top face. ROS-free.
+
+Heights come in units of each point's own noise (z = height / sigma_h, work_surface.py), so the
+same thresholds hold near and far:
+
+1. Candidates: points more than `margin_sigmas` above the surface.
+2. Regions: candidates connected in the left image's grid of matches (8-neighbours, bridging a
+   gap of one missing match). Table noise above the margin comes in blobs the size of a
+   correlation window, an object as one region that covers its whole image.
+3. An object is a region whose median z is at least `object_sigmas`: the tail of the surface
+   noise that crossed the margin stays just above it, an object's top stands above it as a
+   whole (a disc of 5 mm at 0.8 m in the rendered scenes: ~10 sigma). Of several objects the
+   one with the most points is kept; none means no object, whatever the noise did.
+4. The top face: the highest dense level of the region's heights (bins of one sigma, a bin is
+   dense when it holds TOP_DENSE_SHARE of the fullest), refined to the median of the heights
+   within TOP_WINDOW_SIGMAS of it. The correlation area is the region's points within
+   `band_sigmas` of that top: the face, not its highest noisy points, and only the rim of the
+   side walls that noise cannot tell from the face.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+TOP_DENSE_SHARE = 0.25
+"""A height bin belongs to the object's top when it holds this share of the fullest bin."""
+
+TOP_WINDOW_SIGMAS = 2.0
+"""The top height is the median of the heights within this many sigmas of the dense top bin."""
+
+MAX_GRID_CELLS = 4_000_000
+"""Largest image grid the regions are found on (a 2000 x 2000 image at point_stride 1)."""
+
+_EIGHT_NEIGHBOURS = np.ones((3, 3), dtype=bool)
+
+
+def on_pixel_grid(columns: np.ndarray) -> bool:
+    """Return True when the matches lie on whole pixel columns (correlation_node's output)."""
+    columns = np.asarray(columns, dtype=float)
+    return bool(np.all(columns == np.round(columns)))
+
+
+def grid_step(columns: np.ndarray, rows: np.ndarray) -> float:
+    """Return the spacing [px] of the matches' image grid (correlation_node's point_stride).
+
+    Matches on whole pixels: the greatest common divisor of the gaps between the distinct
+    columns. Matches anywhere (geometric scenes): twice the mean spacing of the points over
+    their bounding box, so that neighbours share or touch cells. Either way coarse enough
+    that the grid has at most MAX_GRID_CELLS cells, whatever coordinates come in.
+    """
+    columns = np.asarray(columns, dtype=float)
+    rows = np.asarray(rows, dtype=float)
+    distinct = np.unique(columns)
+    if len(distinct) < 2:
+        step = 1.0
+    elif np.all(distinct == np.round(distinct)):
+        step = float(max(1, int(np.gcd.reduce(np.diff(distinct).astype(np.int64)))))
+    else:
+        extent = float(np.ptp(columns) * max(float(np.ptp(rows)), 1.0))
+        step = max(1.0, 2.0 * math.sqrt(extent / len(columns)))
+    span = (float(np.ptp(columns)) + 1.0) * (float(np.ptp(rows)) + 1.0) if len(rows) else 1.0
+    return max(step, math.sqrt(span / MAX_GRID_CELLS))
+
+
+def _grid_cells(u: np.ndarray, v: np.ndarray, step: float) -> tuple[np.ndarray, tuple[int, int]]:
+    """Return each point's cell (linear index) in the image grid of spacing step, and its shape."""
+    column = np.round(np.asarray(u, dtype=float) / step).astype(np.int64)
+    row = np.round(np.asarray(v, dtype=float) / step).astype(np.int64)
+    column -= column.min()
+    row -= row.min()
+    shape = (int(row.max()) + 1, int(column.max()) + 1)
+    return row * shape[1] + column, shape
+
+
+def smoothed_on_grid(u: np.ndarray, v: np.ndarray, values: np.ndarray, step: float,
+                     size_px: float) -> np.ndarray:
+    """Return each point's mean of `values` over the matches within a square of size_px.
+
+    Args:
+        u: (N,) left image column of every match [px], N > 0.
+        v: (N,) row [px].
+        values: (N,) what is averaged.
+        step: Grid spacing [px] (grid_step).
+        size_px: Side of the averaging square [px] (at least one cell).
+    """
+    cells, shape = _grid_cells(u, v, step)
+    size = max(1, int(round(size_px / step)) | 1)
+    total = ndimage.uniform_filter(np.bincount(cells, weights=values, minlength=shape[0]
+                                               * shape[1]).reshape(shape), size, mode='constant')
+    count = ndimage.uniform_filter(np.bincount(cells, minlength=shape[0] * shape[1]).astype(
+        float).reshape(shape), size, mode='constant')
+    mean: np.ndarray = total.reshape(-1)[cells] / count.reshape(-1)[cells]
+    return mean
+
+
+def grown_region(u: np.ndarray, v: np.ndarray, member: np.ndarray, step: float,
+                 size_px: float) -> np.ndarray:
+    """Return the points within a square of size_px around any member, in the image grid.
+
+    Args:
+        u: (N,) left image column of every match [px], N > 0.
+        v: (N,) row [px].
+        member: (N,) bool, the region.
+        step: Grid spacing [px] (grid_step).
+        size_px: Side of the square [px].
+    """
+    cells, shape = _grid_cells(u, v, step)
+    grid = np.zeros(shape[0] * shape[1], dtype=bool)
+    grid[cells[member]] = True
+    size = max(1, int(round(size_px / step)) | 1)
+    grown = ndimage.maximum_filter(grid.reshape(shape), size, mode='constant')
+    inside: np.ndarray = grown.reshape(-1)[cells]
+    return inside
+
+
+def image_regions(u: np.ndarray, v: np.ndarray, candidate: np.ndarray, step: float
+                  ) -> tuple[np.ndarray, int]:
+    """Label candidates connected in the image grid of the matches.
+
+    Args:
+        u: (N,) left image column of every match [px].
+        v: (N,) row [px].
+        candidate: (N,) bool, the points to group.
+        step: Grid spacing [px] (grid_step).
+
+    Returns:
+        (labels (N,): 1..n for candidates, 0 for the others; n).
+    """
+    labels = np.zeros(len(u), dtype=np.int64)
+    if not np.any(candidate):
+        return labels, 0
+    column = np.round(np.asarray(u, dtype=float)[candidate] / step).astype(np.int64)
+    row = np.round(np.asarray(v, dtype=float)[candidate] / step).astype(np.int64)
+    column -= column.min() - 1
+    row -= row.min() - 1
+    grid = np.zeros((int(row.max()) + 2, int(column.max()) + 2), dtype=bool)
+    grid[row, column] = True
+    # One cell of dilation joins candidates across one missing match; the labels are read
+    # back at the candidates only.
+    grown = ndimage.binary_dilation(grid, structure=_EIGHT_NEIGHBOURS)
+    cell_labels, count = ndimage.label(grown, structure=_EIGHT_NEIGHBOURS)
+    labels[candidate] = cell_labels[row, column]
+    return labels, int(count)
+
+
+@dataclass(frozen=True)
+class ObjectRegion:
+    """The object's region among the candidates, or why there is none.
+
+    Attributes:
+        label: Label of the object's region (0: none).
+        regions: Regions among the candidates.
+        objects: Regions that pass both height tests.
+        median_sigmas: Median z of the chosen region (or of the largest when none passed).
+        points: Points of that region.
+        top_m: Height of its top face [m] (NaN when none passed).
+    """
+
+    label: int
+    regions: int
+    objects: int
+    median_sigmas: float
+    points: int
+    top_m: float = math.nan
+
+
+def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights: np.ndarray,
+                  sigmas: np.ndarray, object_sigmas: float, top_sigmas: float,
+                  min_points: int) -> ObjectRegion:
+    """Return the region that is an object, or label 0 when none is.
+
+    A region is an object when it has min_points points, their median z (heights averaged
+    over the image, in sigmas of that average) is object_sigmas, and its top face
+    (top_height) stands top_sigmas above the surface in sigmas of one point. The second test
+    keeps out low, wide patterns that averaging makes significant: the surface's own
+    systematic errors (sub-pixel bias, a plane that fits a slightly curved surface), a
+    millimetre high. Of several objects the one with the most points.
+
+    Args:
+        labels: (N,) region of every point (0: none).
+        count: Number of regions.
+        z_scores: (N,) averaged heights in sigmas.
+        heights: (N,) heights above the surface [m].
+        sigmas: (N,) their standard deviations [m].
+        object_sigmas: Lowest median z of an object.
+        top_sigmas: Lowest top height of an object, in sigmas of its points.
+        min_points: Fewest points of an object.
+    """
+    if count == 0:
+        return ObjectRegion(0, 0, 0, math.nan, 0)
+    members = labels > 0
+    sizes = np.bincount(labels[members], minlength=count + 1)
+    order = np.argsort(labels[members], kind='stable')
+    sorted_scores = z_scores[members][order]
+    bounds = np.concatenate([[0], np.cumsum(sizes[1:])])
+    medians = np.full(count + 1, math.nan)
+    for label in range(1, count + 1):
+        if sizes[label]:
+            medians[label] = float(np.median(sorted_scores[bounds[label - 1]:bounds[label]]))
+    passed = np.flatnonzero((sizes >= min_points) & (medians >= object_sigmas))
+    objects = []
+    for passing in passed:
+        label = int(passing)
+        region = labels == label
+        top = top_height(heights[region], sigmas[region])
+        if top >= top_sigmas * float(np.median(sigmas[region])):
+            objects.append((int(sizes[label]), label, top))
+    if not objects:
+        largest = int(np.argmax(sizes))
+        return ObjectRegion(0, count, 0, float(medians[largest]), int(sizes[largest]))
+    size, chosen, top = max(objects)
+    return ObjectRegion(chosen, count, len(objects), float(medians[chosen]), size, top)
+
+
+def top_height(heights: np.ndarray, sigmas: np.ndarray) -> float:
+    """Return the height [m] of an object's top face from its points' heights and sigmas.
+
+    Args:
+        heights: (M,) heights above the surface [m], M > 0.
+        sigmas: (M,) their standard deviations [m].
+    """
+    bin_m = max(float(np.median(sigmas)), 1e-6)
+    lowest = float(heights.min())
+    bins = ((heights - lowest) / bin_m).astype(np.int64)
+    per_bin = np.bincount(bins)
+    dense = np.flatnonzero(per_bin >= TOP_DENSE_SHARE * per_bin.max())
+    level = lowest + (float(dense[-1]) + 0.5) * bin_m
+    for _ in range(3):
+        near = heights[np.abs(heights - level) <= TOP_WINDOW_SIGMAS * bin_m]
+        if not len(near):
+            break
+        level = float(np.median(near))
+    return level
+

@@ -1,0 +1,84 @@
+"""Matches on the pixel grid of a rectified pair, ray-cast from a table and a box (tests only).
+
+What correlation_node hands the fuzzy stage, without rendering: for every left-image pixel on the
+grid of `stride`, the ray meets the work surface z = 0 or the top of the box; its disparity
+gets noise that is correlated over a window (as window correlation's errors are), and the point
+is triangulated back into the left optical frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+from stereo_fuzzy_perception.core.camera_model import CameraCalibration
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+from stereo_fuzzy_perception.simulation.synthetic_scenes import (
+    default_camera_matrix,
+    rectified_calibration,
+)
+
+
+@dataclass(frozen=True)
+class Box:
+    """An upright box (or a disc when round) standing on the surface, [m] in `world`."""
+
+    centre_xy: tuple[float, float]
+    size: float
+    height: float
+    round: bool = False
+
+    def covers(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        dx, dy = x - self.centre_xy[0], y - self.centre_xy[1]
+        if self.round:
+            return np.hypot(dx, dy) <= 0.5 * self.size
+        return (np.abs(dx) <= 0.5 * self.size) & (np.abs(dy) <= 0.5 * self.size)
+
+
+def grid_matches(rig: StereoRig, box: Box | None, noise_px: float, stride: int = 1,
+                 seed: int = 0, fov_deg: float = 45.0, surface_z: float = 0.0,
+                 surface_slope: tuple[float, float] = (0.0, 0.0), window: int = 9
+                 ) -> tuple[MatchedPoints, CameraCalibration, CameraCalibration]:
+    """Return (matches, left, right rectified calibrations) of a box on a (tilted) surface.
+
+    The surface is z = surface_z + slope_x x + slope_y y; the box stands on z = surface_z with
+    its top at surface_z + height. Side walls are not drawn.
+    """
+    left, right = rectified_calibration(rig, default_camera_matrix(vertical_fov_deg=fov_deg))
+    focal, cx, cy = left.P[0, 0], left.P[0, 2], left.P[1, 2]
+    f_baseline = -right.P[0, 3]
+    rows, columns = np.mgrid[0:left.height, 0:left.width].astype(float)
+    rectified_rays = np.stack([(columns - cx) / focal, (rows - cy) / focal,
+                               np.ones_like(columns)], axis=-1)
+    pose = rig.world_from_left_camera()
+    world_rays = rectified_rays @ (pose[:3, :3] @ np.asarray(left.R).T).T
+    centre = pose[:3, 3]
+    slope_x, slope_y = surface_slope
+    # ray: centre + t * ray (t = rectified depth); surface z - sx x - sy y = surface_z
+    along = world_rays[..., 2] - slope_x * world_rays[..., 0] - slope_y * world_rays[..., 1]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        depth = (surface_z - centre[2] + slope_x * centre[0] + slope_y * centre[1]) / along
+        if box is not None:
+            top_depth = (surface_z + box.height - centre[2]) / world_rays[..., 2]
+            top = centre + top_depth[..., None] * world_rays
+            on_top = box.covers(top[..., 0], top[..., 1]) & (top_depth > 0)
+            depth = np.where(on_top, top_depth, depth)
+    rng = np.random.default_rng(seed)
+    noise = ndimage.uniform_filter(rng.normal(size=depth.shape), window)
+    noise *= noise_px / max(float(noise.std()), 1e-12)
+    disparity = f_baseline / depth + noise
+    keep = (depth > 0) & (disparity > 0)
+    keep[::, :] &= (rows % stride == 0) & (columns % stride == 0)
+    rectified = rectified_rays[keep] * (f_baseline / disparity[keep])[:, None]
+    xyz = rectified @ np.asarray(left.R)  # R^T applied to row vectors
+    u = columns[keep]
+    points = MatchedPoints(xyz, u, rows[keep], u - disparity[keep], np.ones(int(keep.sum())))
+    return points, left, right
+
+
+def camera_distance(rig: StereoRig) -> float:
+    """Return the distance [m] from the rig to the surface along its optical axis."""
+    return rig.z0_m / math.cos(math.radians(rig.alpha_deg))
