@@ -39,7 +39,7 @@ S = TypeVar('S')
 N = TypeVar('N', bound=Node)
 
 
-class StartupError(Exception):
+class StartupError(ValueError):
     """The node cannot start; the message is one line naming what, its value and what is allowed.
 
     Args:
