@@ -39,7 +39,7 @@ S = TypeVar('S')
 N = TypeVar('N', bound=Node)
 
 
-class StartupError(Exception):
+class StartupError(ValueError):
     """The node cannot start; the message is one line naming what, its value and what is allowed.
 
     Args:
@@ -235,64 +235,3 @@ def run_node(node_type: Callable[[], N], args: list[str] | None = None) -> None:
     if failed:
         sys.exit(1)
 
-
-def declare_parameters(
-    node: Node,
-    specs: Sequence[ParameterSpec],
-    validate: Callable[[dict[str, ParameterValue]], str | None] | None = None,
-    apply: Callable[[dict[str, ParameterValue]], None] | None = None,
-) -> dict[str, ParameterValue]:
-    """Declare `specs` on `node` and return their current values by name (untyped).
-
-    Kept for nodes not yet moved to `declare_settings`; prefer that.
-
-    Args:
-        node: The node to declare on.
-        specs: The node's parameter specs.
-        validate: Cross-parameter check returning a reason to reject, or None.
-        apply: Called with all values after an accepted change.
-
-    Returns:
-        The declared values, by parameter name.
-    """
-    by_name = {spec.name: spec for spec in specs}
-    for spec in specs:
-        node.declare_parameter(spec.name, spec.default, _descriptor(spec))
-    values: dict[str, ParameterValue] = {
-        spec.name: node.get_parameter(spec.name).value for spec in specs
-    }
-    for spec in specs:
-        reason = spec.check(values[spec.name])
-        if reason:
-            raise ValueError(reason)
-    if validate is not None:
-        reason = validate(values)
-        if reason:
-            raise ValueError(reason)
-
-    def on_set(parameters: list[Parameter]) -> SetParametersResult:
-        proposed = dict(values)
-        for parameter in parameters:
-            spec = by_name.get(parameter.name)
-            if spec is None:
-                continue
-            reason = spec.check(parameter.value)
-            if reason:
-                return SetParametersResult(successful=False, reason=reason)
-            proposed[parameter.name] = parameter.value
-        if validate is not None:
-            reason = validate(proposed)
-            if reason:
-                return SetParametersResult(successful=False, reason=reason)
-        return SetParametersResult(successful=True)
-
-    def after_set(parameters: list[Parameter]) -> None:
-        for parameter in parameters:
-            if parameter.name in by_name:
-                values[parameter.name] = parameter.value
-        if apply is not None:
-            apply(dict(values))
-
-    node.add_on_set_parameters_callback(on_set)
-    node.add_post_set_parameters_callback(after_set)
-    return values
