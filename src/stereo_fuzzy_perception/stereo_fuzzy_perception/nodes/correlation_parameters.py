@@ -65,6 +65,9 @@ PARAMETERS = [
                   'Pairs waiting while one is matched; when full the oldest is dropped. 1 = the '
                   'newest pair always wins (bounded latency); more tolerates bursts in replays',
                   minimum=1, maximum=30),
+    ParameterSpec('max_image_pixels', 4096 * 3072,
+                  'Largest image accepted [px, width x height]; larger pairs are dropped as '
+                  'image_too_large before they are decoded', minimum=1, maximum=32767 * 32767),
     ParameterSpec('input_reliability', 'reliable',
                   'Reliability of the stereo/pair subscription', choices=('reliable',
                                                                           'best_effort'),
@@ -109,4 +112,6 @@ def config_problem(values: dict[str, ParameterValue]) -> str | None:
         matcher_config(values)
     except MatcherConfigError as error:
         return str(error)
+    except (TypeError, ValueError, OverflowError) as error:  # never raise out of on-set
+        return f'cannot build the matcher configuration ({type(error).__name__}: {error})'
     return None

@@ -34,11 +34,14 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     TOO_FEW_POINTS,
 )
 from stereo_fuzzy_perception.core.best_point.point_selectors import (
+    OUTPUT_STATUSES,
     BestPointChooser,
     BestPointDecision,
     SelectorError,
+    load_selector_files,
 )
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
 from stereo_fuzzy_perception.nodes import qos
 from stereo_fuzzy_perception.nodes.conversions import (
     best_point_to_point_stamped,
@@ -57,7 +60,9 @@ BEST_POINT_TOPIC = 'best_point'
 DECISION_TOPIC = 'best_point/decision'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 MALFORMED_INPUT = 'malformed_input'
-REFUSAL_REASONS = (NO_POINTS, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED, MALFORMED_INPUT)
+INTERNAL_ERROR = 'internal_error'
+REFUSAL_REASONS = (NO_POINTS, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED, MALFORMED_INPUT,
+                   *OUTPUT_STATUSES, INTERNAL_ERROR)
 ERROR_THROTTLE_S = 5.0
 
 
@@ -73,11 +78,19 @@ def build_chooser(values: dict[str, ParameterValue]) -> BestPointChooser:
 
 
 def check_parameters(values: dict[str, ParameterValue]) -> str | None:
-    """Return why the parameter values cannot work together (e.g. a bad rule base), or None."""
+    """Return why the parameter values cannot work together (e.g. a bad rule base), or None.
+
+    Both files are loaded and checked whichever selector is active, so a bad network_file is
+    refused when it is set, not when neural_network is selected later. Never raises: this is
+    the on-set parameters callback's check.
+    """
     try:
+        load_selector_files(str(values['rule_base_file']), str(values['network_file']))
         build_chooser(values)
     except SelectorError as error:
         return str(error)
+    except Exception as error:  # a loader bug must refuse the change, not kill the node
+        return f'cannot check the parameters ({type(error).__name__}: {error})'
     return None
 
 
@@ -98,6 +111,7 @@ class FuzzyBestPointNode(Node):
         self.decisions: Counter[str] = Counter({STATUS_OK: 0, **dict.fromkeys(
             REFUSAL_REASONS, 0)})
         self._last_status = 'waiting for input'
+        self.matches_sequence = SequenceGaps()
         self.best_point_publisher = self.create_publisher(
             PointStamped, BEST_POINT_TOPIC, qos.RESULTS)
         self.decision_publisher = self.create_publisher(
@@ -117,7 +131,11 @@ class FuzzyBestPointNode(Node):
         return chooser.selector
 
     def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
-        chooser = build_chooser(values)  # validated already
+        try:
+            chooser = build_chooser(values)  # validated already, but the file may have changed
+        except Exception as error:
+            self.get_logger().error(f'keeping {self._describe()}: {error}')
+            return
         with self._lock:
             self.parameters = values
             self._chooser = chooser
@@ -127,6 +145,7 @@ class FuzzyBestPointNode(Node):
         header = Header(stamp=msg.header.stamp, frame_id=str(self.parameters['world_frame']))
         with self._lock:
             chooser = self._chooser
+            self.matches_sequence.observe(int(msg.sequence))
         try:
             points = cloud_to_matched_points(msg.points)
             left = camera_info_to_calibration(msg.left_info)
@@ -143,7 +162,13 @@ class FuzzyBestPointNode(Node):
                                          reason=str(error))
             self._publish(decision, header, msg.header.frame_id)
             return
-        decision = chooser.decide(points, left, right)
+        try:
+            decision = chooser.decide(points, left, right)
+        except Exception as error:  # no input may stop the node; say what happened instead
+            self.get_logger().error(f'choosing failed: {error!r}',
+                                    throttle_duration_sec=ERROR_THROTTLE_S)
+            decision = BestPointDecision(chooser.selector, status=INTERNAL_ERROR,
+                                         reason=f'{type(error).__name__}: {error}')
         self._publish(decision, header, msg.header.frame_id)
 
     def _publish(self, decision: BestPointDecision, header: Header, camera_frame: str) -> None:
@@ -174,6 +199,8 @@ class FuzzyBestPointNode(Node):
                                             ('decisions made', made),
                                             ('decisions refused', sum(refused.values()))]
         values += [(f'refused {reason}', count) for reason, count in refused.items()]
+        with self._lock:
+            values += list(self.matches_sequence.report('stereo/matches').items())
         status.values = [KeyValue(key=key, value=str(value)) for key, value in values]
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()

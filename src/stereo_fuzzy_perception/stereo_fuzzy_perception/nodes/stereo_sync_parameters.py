@@ -20,6 +20,9 @@ PARAMETERS = [
                   'Reliability of the four input subscriptions; best_effort also receives '
                   'reliable publishers',
                   choices=('best_effort', 'reliable'), read_only=True),
+    ParameterSpec('max_image_pixels', 4096 * 3072,
+                  'Largest image accepted [px, width x height]; larger pairs are dropped as '
+                  'image_too_large before they are decoded', minimum=1, maximum=32767 * 32767),
     # --- devices source
     ParameterSpec('left_device', '',
                   'Left capture: device index (0), video file, or image pattern (left_%03d.png)',
