@@ -11,6 +11,8 @@ import numpy as np
 
 MAX_IMAGE_SIDE = 32767
 """Largest image side [px]: OpenCV's fixed-point remap maps hold coordinates as int16."""
+ROTATION_TOLERANCE = 0.01
+"""Largest |(R R^T - I)_ij| accepted for a rectification rotation (files round R)."""
 DISTORTION_LENGTHS: dict[str, tuple[int, ...]] = {
     'plumb_bob': (0, 4, 5),
     'rational_polynomial': (0, 8),
@@ -98,8 +100,9 @@ class CameraCalibration:
                         f'{self.width}x{self.height} image')
         if not np.allclose(K[2], (0.0, 0.0, 1.0)) or not np.allclose(P[2, :3], (0.0, 0.0, 1.0)):
             return 'the last row of K and of P[:, :3] must be (0, 0, 1)'
-        with np.errstate(over='ignore', invalid='ignore'):  # huge entries: not a rotation
-            rotation = bool(np.allclose(R @ R.T, np.eye(3), atol=1e-4)
+        # Tolerance for files written with 3 decimals; huge entries overflow: not a rotation.
+        with np.errstate(over='ignore', invalid='ignore'):
+            rotation = bool(np.allclose(R @ R.T, np.eye(3), atol=ROTATION_TOLERANCE)
                             and np.linalg.det(R) > 0.0)
         if not rotation:
             return 'R is not a rotation (R R^T = I, det R = 1)'

@@ -193,7 +193,7 @@ def rule_base_from_dict(data: Any, source: str = '<dict>') -> RuleBase:
 def _terms(raw_terms: Any, source: str) -> list[TriangularTerm]:
     if not isinstance(raw_terms, list) or not raw_terms or len(raw_terms) > MAX_TERMS:
         raise _fail(source, 'membership_functions',
-                    f'expected a list of 1 to {MAX_TERMS} membership functions')
+                    f'expected a non-empty list of at most {MAX_TERMS} membership functions')
     terms: list[TriangularTerm] = []
     for index, raw in enumerate(raw_terms):
         where = f'membership_functions[{index}]'
@@ -217,17 +217,17 @@ def _terms(raw_terms: Any, source: str) -> list[TriangularTerm]:
 
 def _rules(raw_rules: Any, names: set[str], source: str) -> list[FuzzyRule]:
     if not isinstance(raw_rules, list) or not raw_rules or len(raw_rules) > MAX_RULES:
-        raise _fail(source, 'rules', f'expected a list of 1 to {MAX_RULES} rules')
+        raise _fail(source, 'rules', f'expected a non-empty list of at most {MAX_RULES} rules')
     rules: list[FuzzyRule] = []
     for index, raw in enumerate(raw_rules):
         entry = _mapping(raw, source, f'rules[{index}]', 'a mapping')
+        where = f'rule {_short(entry.get("name", index))}'
         missing = [key for key in ('name', 'area', 'if', 'then') if key not in entry]
         if missing:
-            raise _fail(source, f'rules[{index}]', f'missing key(s) {", ".join(missing)}')
+            raise _fail(source, where, f'missing key(s) {", ".join(missing)}')
         unknown = set(entry) - {'name', 'area', 'if', 'then'}
         if unknown:
-            raise _fail(source, f'rules[{index}]',
-                        f'unknown key(s) {", ".join(sorted(unknown))}')
+            raise _fail(source, where, f'unknown key(s) {", ".join(sorted(unknown))}')
         name = _text(entry['name'], source, f'rules[{index}].name')
         where = f'rule {name!r}'
         area = entry['area']
