@@ -16,9 +16,13 @@ TIMEOUT = 30.0  # [s] generous: DDS discovery alone can take about 2 s
 
 
 class HostileProbe:
-    """A probe node beside `process` (the node `node_name` under test)."""
+    """A probe node beside `process` (the node `node_name` under test).
 
-    def __init__(self, context: Any, process: RosProcess, node_name: str) -> None:
+    Probes of several processes can share one `executor`, so that waiting on one spins all.
+    """
+
+    def __init__(self, context: Any, process: RosProcess, node_name: str,
+                 executor: Any = None) -> None:
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
         from rcl_interfaces.srv import GetParameters, SetParameters
@@ -26,8 +30,9 @@ class HostileProbe:
         from stereo_fuzzy_perception.nodes import qos
 
         self.process, self.node_name = process, node_name
-        self.node = rclpy.create_node('hostile_probe', context=context)
-        self.executor = SingleThreadedExecutor(context=context)
+        self.node = rclpy.create_node(f'hostile_probe_{node_name}', context=context)
+        self._own_executor = executor is None
+        self.executor = SingleThreadedExecutor(context=context) if executor is None else executor
         self.executor.add_node(self.node)
         self._set = self.node.create_client(SetParameters, f'/{node_name}/set_parameters')
         self._get = self.node.create_client(GetParameters, f'/{node_name}/get_parameters')
@@ -104,6 +109,9 @@ class HostileProbe:
                   f'{self.diagnostic_value(key)!r})')
 
     def close(self) -> None:
-        """Destroy the probe node."""
-        self.executor.shutdown()
+        """Destroy the probe node (and its executor, unless shared)."""
+        if self._own_executor:
+            self.executor.shutdown()
+        else:
+            self.executor.remove_node(self.node)
         self.node.destroy_node()
