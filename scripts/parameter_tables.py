@@ -1,9 +1,9 @@
-"""Print (or write into the READMEs) the parameter table of every node, from the node's specs.
+"""Print (or write into the package READMEs) the parameter table of every node, from its specs.
 
-The tables sit between `<!-- parameters:NODE -->` and `<!-- /parameters -->` in README.md and in
-the package READMEs; tests/test_readme.py fails when they differ from what this script
-generates, so the docs cannot drift from the defaults. Update them with:
-python scripts/parameter_tables.py --write
+Each node's table sits between `<!-- parameters:NODE -->` and `<!-- /parameters -->` in its
+package's README (README.md links to them); tests/test_readme.py fails when a table differs
+from what this script generates, so the docs cannot drift from the declarations. Update them
+with: python scripts/parameter_tables.py --write
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ for package_dir in ('src/stereo_fuzzy_parameters', 'src/stereo_fuzzy_perception'
                     'src/cartesian_3p_driver'):
     sys.path.insert(0, str(REPO_ROOT / package_dir))
 
-# node name -> module holding its PARAMETERS list
+# node name -> module holding its PARAMETERS list (generated from the node's settings type)
 NODE_PARAMETER_MODULES = {
     'stereo_sync_node': 'stereo_fuzzy_perception.nodes.stereo_sync_parameters',
     'correlation_node': 'stereo_fuzzy_perception.nodes.correlation_parameters',
@@ -27,9 +27,16 @@ NODE_PARAMETER_MODULES = {
     'gantry_driver_node': 'cartesian_3p_driver.gantry_driver_parameters',
     'fake_gantry': 'cartesian_3p_driver.fake_gantry_parameters',
 }
-# Every README that holds parameter blocks (the top-level one holds all nodes).
-READMES = (REPO_ROOT / 'README.md', REPO_ROOT / 'src/stereo_fuzzy_perception/README.md',
-           REPO_ROOT / 'src/cartesian_3p_driver/README.md')
+
+
+def package_readme(node: str) -> Path:
+    """Return the README of the package that holds `node`: the one place of its table."""
+    package = NODE_PARAMETER_MODULES[node].split('.')[0]
+    return REPO_ROOT / 'src' / package / 'README.md'
+
+
+# Every README that holds parameter blocks: the package READMEs.
+READMES = tuple(sorted({package_readme(node) for node in NODE_PARAMETER_MODULES}))
 BLOCK = re.compile(r'(<!-- parameters:(?P<node>\w+) -->\n)(?P<body>.*?)(<!-- /parameters -->)',
                    re.DOTALL)
 

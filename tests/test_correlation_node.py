@@ -163,6 +163,8 @@ def test_bad_pair_is_dropped_reported_and_a_good_pair_still_matches(harness, bad
                TIMEOUT, f'/diagnostics reporting the {reason} drop', rig.executor)
     assert rig.diagnostics[-1].status[0].level == rig.diagnostics[-1].status[0].WARN
     assert words in rig.diagnostics[-1].status[0].message
+    assert rig.diagnostics[-1].status[0].hardware_id == 'correlation_node', (
+        'hardware_id names the node (it drives no device)')
 
     rig.publish_and_wait_processed(stereo_pair(stamp_sec=2))
     wait_until(lambda: rig.matches, TIMEOUT, 'matches of the good pair', rig.executor)

@@ -169,6 +169,8 @@ def test_malformed_input_is_reported_and_the_node_keeps_going(harness):
             'refused malformed_input') == '2'
 
     wait_until(counted, TIMEOUT, 'diagnostics counting 1 made and 2 malformed', run.executor)
+    assert run.diagnostics[-1].status[0].hardware_id == 'fuzzy_best_point_node', (
+        'hardware_id names the node (it drives no device)')
 
 
 def test_selector_can_be_changed_and_bad_rule_base_is_rejected(harness, tmp_path):

@@ -97,7 +97,7 @@ class SyncHarness:
         from stereo_fuzzy_msgs.msg import StereoPair
 
         parameters.setdefault('input_reliability', 'reliable')
-        parameters.setdefault('diagnostics_period', 0.2)
+        parameters.setdefault('diagnostics_period_s', 0.2)
         overrides = [Parameter(name, value=value) for name, value in parameters.items()]
         self.node = StereoSyncNode(context=context, parameter_overrides=overrides)
         self.feeder = rclpy.create_node('stereo_feeder', context=context)
@@ -191,15 +191,15 @@ def test_matching_images_and_camera_infos_make_one_stereo_pair(make_harness):
 def test_exact_mode_ignores_a_near_set_and_approximate_mode_pairs_it(make_harness):
     from rclpy.parameter import Parameter
 
-    harness = make_harness(slop=0.0)
+    harness = make_harness(slop_s=0.0)
     harness.wait_for_graph()
     harness.publish(stereo_set(1_000_000_000, right_offset_ns=5_000_000))
     harness.publish(stereo_set(2_000_000_000))
     harness.wait(lambda: harness.pairs, 'the exact pair at 2 s')
     assert [stamp_ns_of(pair) for pair in harness.pairs] == [2_000_000_000], (
-        'slop 0 must not pair left 1.000 s with right 1.005 s')
+        'slop_s 0 must not pair left 1.000 s with right 1.005 s')
 
-    result = harness.node.set_parameters([Parameter('slop', value=0.02)])[0]
+    result = harness.node.set_parameters([Parameter('slop_s', value=0.02)])[0]
     assert result.successful, result.reason
     harness.publish(stereo_set(3_000_000_000, right_offset_ns=5_000_000))
     harness.wait(lambda: len(harness.pairs) == 2, 'the approximate pair at 3 s')
@@ -210,7 +210,7 @@ def test_exact_mode_ignores_a_near_set_and_approximate_mode_pairs_it(make_harnes
 
 
 def test_approximate_mode_pairs_the_closest_right_image(make_harness):
-    harness = make_harness(slop=0.02)
+    harness = make_harness(slop_s=0.02)
     harness.wait_for_graph()
     left_image, left_info, _, _ = stereo_set(5_000_000_000)
     far = stereo_set(5_000_000_000, right_offset_ns=15_000_000)
@@ -257,7 +257,7 @@ BAD_SETS = {
     ('size_mismatch', {'right_info_width': WIDTH + 8}),
 ], ids=[*BAD_SETS, 'image_vs_camera_info_size'])
 def test_bad_set_is_dropped_counted_by_reason_and_a_good_pair_follows(make_harness, reason, bad):
-    harness = make_harness(slop=0.01)
+    harness = make_harness(slop_s=0.01)
     harness.wait_for_graph()
     harness.publish(stereo_set(10_000_000_000, **bad))
     harness.wait_for_diagnostic(f'dropped {reason}', lambda value: value == '1', 'to be 1')
@@ -294,6 +294,8 @@ def test_images_without_camera_info_are_reported_missing(make_harness):
     assert harness.pairs == []
     assert harness.statuses[-1].level == DiagnosticStatus.WARN
     assert 'missing_camera_info' in harness.statuses[-1].message
+    assert harness.statuses[-1].hardware_id == 'stereo_sync_node', (
+        'hardware_id names the node when it reads topics')
     # The right images had their camera_info: unpaired, not missing calibration.
     harness.wait_for_diagnostic('unpaired right/image_raw', lambda value: value == '2',
                                 'to count the two right images evicted without a left partner')
@@ -329,7 +331,7 @@ def test_devices_source_publishes_pairs_from_image_files(make_harness, tmp_path)
     from stereo_fuzzy_perception.nodes.conversions import image_to_array
 
     parameters = write_device_files(tmp_path, frames=3)
-    harness = make_harness(**parameters, loop=True, frame_rate=50.0)
+    harness = make_harness(**parameters, loop=True, frame_rate_hz=50.0)
     harness.wait_for_graph(inputs=False)
     harness.wait(lambda: len(harness.pairs) >= 2, 'two StereoPairs from the image files')
     pair = harness.pairs[-1]
@@ -345,11 +347,15 @@ def test_devices_source_publishes_pairs_from_image_files(make_harness, tmp_path)
     assert int(left[0, 0, 2]) == 7
     assert list(pair.right_info.p) == pytest.approx(list(calibration().P.ravel()))
     assert (pair.left_info.width, pair.left_info.height) == (WIDTH, HEIGHT)
+    harness.wait(lambda: harness.statuses, '/diagnostics from the devices source')
+    assert harness.statuses[-1].hardware_id == (
+        f'{parameters["left_device"]} {parameters["right_device"]}'), (
+        'hardware_id names the two capture devices')
 
 
 def test_devices_source_stops_at_the_end_of_the_files(make_harness, tmp_path):
     parameters = write_device_files(tmp_path, frames=3)
-    harness = make_harness(**parameters, loop=False, frame_rate=50.0, encoding='mono8')
+    harness = make_harness(**parameters, loop=False, frame_rate_hz=50.0, encoding='mono8')
     harness.wait_for_graph(inputs=False)
     harness.wait_for_diagnostic('capture', lambda value: value == 'ended', 'to be ended')
     assert harness.diagnostic('pairs in') == '3'
@@ -370,57 +376,40 @@ def test_devices_source_drops_frames_that_do_not_fit_the_calibration(make_harnes
 
 def test_devices_source_without_files_refuses_to_start(ros_context):
     from rclpy.parameter import Parameter
-    from stereo_fuzzy_perception.nodes.stereo_sync_node import StereoSyncNode, StereoSyncSetupError
+    from stereo_fuzzy_parameters.declaration import StartupError
+    from stereo_fuzzy_perception.nodes.stereo_sync_node import StereoSyncNode
 
-    with pytest.raises(StereoSyncSetupError,
-                       match='source=devices needs left_device, right_device'):
+    with pytest.raises(StartupError,
+                       match=r"source=devices needs left_device \(now ''\), right_device"):
         StereoSyncNode(context=ros_context,
                        parameter_overrides=[Parameter('source', value='devices')])
 
 
 def test_device_index_given_as_an_integer_is_accepted(ros_context, tmp_path):
     from rclpy.parameter import Parameter
-    from stereo_fuzzy_perception.nodes.stereo_sync_node import StereoSyncNode, StereoSyncSetupError
+    from stereo_fuzzy_parameters.declaration import StartupError
+    from stereo_fuzzy_perception.nodes.stereo_sync_node import StereoSyncNode
 
     parameters = write_device_files(tmp_path, frames=1)
     parameters.update(left_device=97, right_device=98)  # as `-p left_device:=97` gives it
     # No camera 97 exists here: the node gets as far as opening it, which names the device.
-    with pytest.raises(StereoSyncSetupError, match="cannot open capture '97'"):
+    with pytest.raises(StartupError, match="left_device='97': cannot open the capture"):
         StereoSyncNode(context=ros_context, parameter_overrides=[
             Parameter(name, value=value) for name, value in parameters.items()])
 
 
-# --- documentation and configuration agree with the parameter specs --------------------------
-
-
-def test_config_yaml_holds_the_declared_defaults():
-    from stereo_fuzzy_perception.nodes.stereo_sync_parameters import DEFAULTS
-
-    config = yaml.safe_load((PACKAGE_DIR / 'config' / 'stereo_sync_node.yaml').read_text())
-    assert config['stereo_sync_node']['ros__parameters'] == DEFAULTS
+# --- configuration ------------------------------------------------------------------------
 
 
 def test_devices_example_config_uses_declared_parameters_only():
-    from stereo_fuzzy_perception.nodes.stereo_sync_parameters import DEFAULTS
+    from stereo_fuzzy_parameters.spec import settings_from_values, settings_values
+    from stereo_fuzzy_perception.nodes.stereo_sync_parameters import StereoSyncSettings
 
     config = yaml.safe_load(
         (PACKAGE_DIR / 'config' / 'stereo_sync_node_devices.yaml').read_text())
     values = config['stereo_sync_node']['ros__parameters']
-    assert values['source'] == 'devices'
-    assert set(values) <= set(DEFAULTS), set(values) - set(DEFAULTS)
+    declared = settings_values(StereoSyncSettings())
+    assert set(values) <= set(declared), set(values) - set(declared)
+    settings = settings_from_values(StereoSyncSettings, {**declared, **values})
+    assert settings.source == 'devices'
 
-
-def test_readme_parameter_table_matches_the_specs():
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(
-        'parameter_tables', REPO_ROOT / 'scripts' / 'parameter_tables.py')
-    tables = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tables)
-    readme = (PACKAGE_DIR / 'README.md').read_text()
-    section = readme.split('## stereo_sync_node', 1)[1].split('\n## ', 1)[0]
-    blocks = [match.group('node') for match in tables.BLOCK.finditer(section)]
-    assert blocks == ['stereo_sync_node'], f'one generated parameter block expected: {blocks}'
-    assert tables.rewrite_readme(section) == section, (
-        'the stereo_sync_node parameter table in the package README is stale: regenerate it '
-        "with scripts/parameter_tables.py's parameter_table('stereo_sync_node')")

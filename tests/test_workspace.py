@@ -13,7 +13,7 @@ pytestmark = pytest.mark.ros
 
 # (package, executable, a parameter override the test reads back)
 EXECUTABLES = [
-    ('stereo_fuzzy_perception', 'stereo_sync_node', ('slop', 0.02)),
+    ('stereo_fuzzy_perception', 'stereo_sync_node', ('slop_s', 0.02)),
     ('stereo_fuzzy_perception', 'correlation_node', ('window_size', 11)),
     ('stereo_fuzzy_perception', 'fuzzy_best_point_node', ('selector', 'centroid')),
     ('cartesian_3p_driver', 'gantry_driver_node', ('poll_rate_hz', 2.0)),

@@ -14,6 +14,6 @@ setup(
     zip_safe=True,
     maintainer='stereo-fuzzy engineering',
     maintainer_email='engineering@stereo-fuzzy.dev',
-    description='Node parameters written once: specs, descriptors, validation.',
+    description='Node parameters written once: typed settings, descriptors, validation.',
     license='Apache-2.0',
 )

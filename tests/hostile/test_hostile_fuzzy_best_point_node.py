@@ -223,9 +223,9 @@ def test_gaps_in_the_matches_sequence_are_counted(target):
     target.wait_diagnostic('stereo/matches sequence restarts', 1)
 
 
-PARAMETER_NAMES = ['selector', 'rule_base_file', 'network_file', 'workspace.min_x',
+PARAMETER_NAMES = ['selector', 'rule_base_file', 'network_file', 'workspace_min_m',
                    'surface_margin_m', 'cluster_gap_m', 'keep_largest_cluster', 'top_band_m',
-                   'min_points', 'rig.z0_m', 'world_frame', 'diagnostics_period', 'unknown']
+                   'min_points', 'rig.z0_m', 'world_frame', 'diagnostics_period_s', 'unknown']
 VALUES = st.one_of(
     st.booleans(), st.integers(-2**63, 2**63 - 1), st.floats(allow_nan=True,
                                                              allow_infinity=True),

@@ -89,9 +89,9 @@ def test_images_beyond_the_size_limits_are_dropped_before_decoding(target):
     target.wait_diagnostic('pairs out', 1)
 
 
-PARAMETER_NAMES = ['source', 'slop', 'queue_size', 'input_reliability', 'left_device',
-                   'left_calibration_file', 'frame_rate', 'encoding', 'loop',
-                   'diagnostics_period', 'drop_warn_window', 'max_image_pixels', 'unknown']
+PARAMETER_NAMES = ['source', 'slop_s', 'queue_size', 'input_reliability', 'left_device',
+                   'left_calibration_file', 'frame_rate_hz', 'encoding', 'loop',
+                   'diagnostics_period_s', 'drop_warn_window_s', 'max_image_pixels', 'unknown']
 VALUES = st.one_of(
     st.booleans(), st.integers(-2**63, 2**63 - 1), st.integers(-3, 2000),
     st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=10),
@@ -108,7 +108,7 @@ def test_random_parameter_values_are_refused_with_a_reason_or_usable(target, nam
     target.assert_alive()
     if successful:  # accepted: the next set must still be paired or dropped by reason
         target.set_parameter('max_image_pixels', 4096 * 3072)
-        target.set_parameter('slop', 0.0)
+        target.set_parameter('slop_s', 0.0)
         before = target.counter('pairs in')
         target.send(camera_inputs(1000 + before))
         target.wait_diagnostic('pairs in', before + 1)

@@ -1,5 +1,9 @@
 """Node parameters written once, shared by every node of the project.
 
-`spec` is ROS-free (names, defaults, ranges, docs; the README tables are generated from it);
-`declaration` declares specs on an rclpy node with descriptors and an on-set validation.
+`spec` is ROS-free: a node's settings type is a frozen dataclass of `parameter()` fields, from
+which the ParameterSpec list (names, defaults, ranges, docs; the README tables) is derived and
+into which declared values are read. `world` is the world frame and workspace box that several
+nodes share. `declaration` declares a settings type on an rclpy node (descriptors, validation
+of the proposed settings object on every set) and `run_node` runs a node whose start-up errors
+end it with one line.
 """

@@ -12,16 +12,14 @@ import threading
 import time
 import traceback
 from collections import Counter, deque
+from typing import Any
 
 import cv2
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import PointCloud2
-from stereo_fuzzy_parameters.declaration import declare_parameters
-from stereo_fuzzy_parameters.spec import ParameterValue
+from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 from stereo_msgs.msg import DisparityImage
 
 from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
@@ -40,11 +38,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     stereo_matches_message,
     stereo_pair_to_domain,
 )
-from stereo_fuzzy_perception.nodes.correlation_parameters import (
-    PARAMETERS,
-    config_problem,
-    matcher_config,
-)
+from stereo_fuzzy_perception.nodes.correlation_parameters import CorrelationSettings
 
 DROP_REASONS = ('superseded', 'image_too_large', 'calibration', 'size_mismatch', 'encoding',
                 'matcher_input', 'opencv', 'internal')
@@ -53,16 +47,15 @@ DROP_REASONS = ('superseded', 'image_too_large', 'calibration', 'size_mismatch',
 class CorrelationNode(Node):
     """Match stereo pairs by window correlation and publish triangulated matches."""
 
-    def __init__(self, **kwargs: object) -> None:
-        super().__init__('correlation_node', **kwargs)  # type: ignore[arg-type]
-        self.parameters = declare_parameters(self, PARAMETERS, validate=config_problem,
-                                             apply=self._apply_parameters)
-        self.pipeline = StereoMatchingPipeline(matcher_config(self.parameters),
-                                               int(self.parameters['point_stride']))
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('correlation_node', **kwargs)
+        self.settings = declare_settings(self, CorrelationSettings, apply=self._apply_settings)
+        self.pipeline = StereoMatchingPipeline(self.settings.matcher_config(),
+                                               self.settings.point_stride)
         input_qos = QoSProfile(depth=qos.RESULTS.depth, history=qos.RESULTS.history,
                                durability=qos.RESULTS.durability,
                                reliability=qos.reliability_from_name(
-                                   str(self.parameters['input_reliability'])))
+                                   self.settings.input_reliability))
         self.matches_publisher = self.create_publisher(StereoMatches, 'stereo/matches',
                                                        qos.RESULTS)
         self.points_publisher = self.create_publisher(PointCloud2, 'stereo/points', qos.RESULTS)
@@ -88,8 +81,7 @@ class CorrelationNode(Node):
         self._worker = threading.Thread(target=self._work, name='correlation_worker',
                                         daemon=True)
         self._worker.start()
-        self.create_timer(float(self.parameters['diagnostics_period_s']),
-                          self._publish_diagnostics)
+        self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(
             f'correlation_node started: {self.pipeline.config.method}, window '
             f'{self.pipeline.config.window_size}, disparities {self.pipeline.config.min_disparity}'
@@ -97,9 +89,10 @@ class CorrelationNode(Node):
 
     # --- parameters and input -----------------------------------------------------------------
 
-    def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
-        self.pipeline.config = matcher_config(values)
-        self.pipeline.point_stride = int(values['point_stride'])  # type: ignore[arg-type]
+    def _apply_settings(self, settings: CorrelationSettings) -> None:
+        self.settings = settings
+        self.pipeline.config = settings.matcher_config()
+        self.pipeline.point_stride = settings.point_stride
         with self._condition:
             self._condition.notify_all()  # the worker re-reads max_rate_hz
         self.get_logger().info(f'matcher settings now {self.pipeline.config}')
@@ -108,7 +101,7 @@ class CorrelationNode(Node):
         with self._condition:
             self.received += 1
             self.pair_sequence.observe(int(pair.sequence))
-            if len(self._pending) >= int(self.parameters['input_queue_depth']):
+            if len(self._pending) >= self.settings.input_queue_depth:
                 self._pending.popleft()
                 self.dropped['superseded'] += 1
                 self.get_logger().warning(
@@ -136,7 +129,7 @@ class CorrelationNode(Node):
                 # max_rate_hz is re-read on every wake-up (a change notifies), so lowering or
                 # clearing it takes effect at once, not at the deadline of the old rate.
                 while not self._stopping:
-                    rate = float(self.parameters['max_rate_hz'])
+                    rate = self.settings.max_rate_hz
                     remaining = (last_start + 1.0 / rate - time.monotonic()) if rate > 0.0 \
                         else 0.0
                     if remaining <= 0.0:
@@ -152,7 +145,7 @@ class CorrelationNode(Node):
 
     def _process(self, pair: StereoPair) -> None:
         try:
-            check_pair_size(pair, int(self.parameters['max_image_pixels']))  # type: ignore[arg-type]
+            check_pair_size(pair, self.settings.max_image_pixels)
             left, right, calibration = stereo_pair_to_domain(pair)
             calibration.require_valid()
             if left.shape != right.shape:
@@ -219,7 +212,7 @@ class CorrelationNode(Node):
             self.last_error = f'{reason}: {text.splitlines()[0]}'
         self._error_loggers[reason].error(
             f'stereo pair dropped ({reason}): {text}',
-            throttle_duration_sec=float(self.parameters['error_log_period_s']))
+            throttle_duration_sec=self.settings.error_log_period_s)
         self._publish_diagnostics()
 
     # --- diagnostics and shutdown -------------------------------------------------------------
@@ -243,7 +236,7 @@ class CorrelationNode(Node):
                          if reason != 'superseded')
         status = DiagnosticStatus(
             level=DiagnosticStatus.WARN if errors else DiagnosticStatus.OK,
-            name=f'{self.get_name()}: correlation', hardware_id=self.get_namespace(),
+            name=f'{self.get_name()}: correlation', hardware_id=self.get_name(),
             message=f'last error: {last_error}' if last_error else 'matching',
             values=[KeyValue(key=key, value=str(value)) for key, value in values.items()])
         array = DiagnosticArray(status=[status])
@@ -260,18 +253,8 @@ class CorrelationNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    """Run the node until shutdown."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = CorrelationNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Run the node until shutdown; a bad parameter ends it with one line."""
+    run_node(CorrelationNode, args)
 
 
 if __name__ == '__main__':

@@ -15,14 +15,11 @@ import time
 from collections import Counter
 from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_msgs.msg import Header
-from stereo_fuzzy_parameters.declaration import declare_parameters
-from stereo_fuzzy_parameters.spec import ParameterValue
+from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 
 from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
 from stereo_fuzzy_perception.core.best_point import correlation_area
@@ -49,11 +46,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     cloud_to_matched_points,
     decision_to_message,
 )
-from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import (
-    PARAMETERS,
-    area_config,
-    stereo_rig,
-)
+from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import FuzzyBestPointSettings
 
 MATCHES_TOPIC = 'stereo/matches'
 BEST_POINT_TOPIC = 'best_point'
@@ -66,31 +59,45 @@ REFUSAL_REASONS = (NO_POINTS, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED, MA
 ERROR_THROTTLE_S = 5.0
 
 
-def build_chooser(values: dict[str, ParameterValue]) -> BestPointChooser:
-    """Return the chooser the parameter values describe.
+def build_chooser(settings: FuzzyBestPointSettings) -> BestPointChooser:
+    """Return the chooser the settings describe.
 
     Raises:
-        SelectorError: Unknown selector or an unusable rule base / weights file.
-    """
-    return BestPointChooser.create(
-        str(values['selector']), area_config(values), stereo_rig(values),
-        rule_base_file=str(values['rule_base_file']), weights_file=str(values['network_file']))
-
-
-def check_parameters(values: dict[str, ParameterValue]) -> str | None:
-    """Return why the parameter values cannot work together (e.g. a bad rule base), or None.
-
-    Both files are loaded and checked whichever selector is active, so a bad network_file is
-    refused when it is set, not when neural_network is selected later. Never raises: this is
-    the on-set parameters callback's check.
+        SelectorError: Unknown selector or an unusable rule base / weights file; the message
+            names the parameter and its value.
     """
     try:
-        load_selector_files(str(values['rule_base_file']), str(values['network_file']))
-        build_chooser(values)
+        return BestPointChooser.create(
+            settings.selector, settings.area_config(), settings.rig.stereo_rig(),
+            rule_base_file=settings.rule_base_file, weights_file=settings.network_file)
+    except SelectorError as error:
+        # Name the file parameter the selector read, so the reason says what to change.
+        if settings.selector == 'neural_network' and settings.network_file:
+            raise SelectorError(f'network_file={settings.network_file!r}: {error}') from None
+        if settings.selector.startswith('fuzzy') and settings.rule_base_file:
+            raise SelectorError(f'rule_base_file={settings.rule_base_file!r}: {error}') from None
+        raise
+
+
+def chooser_problem(settings: FuzzyBestPointSettings) -> str | None:
+    """Return why no chooser can be built from the settings (e.g. a bad rule base), or None.
+
+    Both files are loaded and checked whichever selector is active, so a bad network_file is
+    refused when it is set, not when neural_network is selected later. Never raises.
+    """
+    try:
+        for name, rule_base_file, weights_file in (
+                ('rule_base_file', settings.rule_base_file, ''),
+                ('network_file', '', settings.network_file)):
+            try:
+                load_selector_files(rule_base_file, weights_file)
+            except SelectorError as error:
+                return f'{name}={rule_base_file or weights_file!r}: {error}'
+        build_chooser(settings)
     except SelectorError as error:
         return str(error)
     except Exception as error:  # a loader bug must refuse the change, not kill the node
-        return f'cannot check the parameters ({type(error).__name__}: {error})'
+        return f'cannot check the settings ({type(error).__name__}: {error})'
     return None
 
 
@@ -100,9 +107,9 @@ class FuzzyBestPointNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('fuzzy_best_point_node', **kwargs)
         self._lock = threading.Lock()
-        self.parameters = declare_parameters(self, PARAMETERS, validate=check_parameters,
-                                             apply=self._apply_parameters)
-        self._chooser = build_chooser(self.parameters)
+        self.settings = declare_settings(self, FuzzyBestPointSettings,
+                                         apply=self._apply_settings, check=chooser_problem)
+        self._chooser = build_chooser(self.settings)
         # Compile (first run) or load the numba point kernel now, not on the first input.
         started = time.monotonic()
         correlation_area.warm_up()
@@ -119,8 +126,7 @@ class FuzzyBestPointNode(Node):
         self.diagnostics_publisher = self.create_publisher(
             DiagnosticArray, DIAGNOSTICS_TOPIC, qos.DIAGNOSTICS)
         self.create_subscription(StereoMatches, MATCHES_TOPIC, self._on_matches, qos.RESULTS)
-        self.create_timer(float(self.parameters['diagnostics_period']),
-                          self._publish_diagnostics)
+        self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(
             f'choosing best points with {self._describe()} from {MATCHES_TOPIC}')
 
@@ -130,19 +136,15 @@ class FuzzyBestPointNode(Node):
             return f'{chooser.selector} (rule base {chooser.rule_base.name!r})'
         return chooser.selector
 
-    def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
-        try:
-            chooser = build_chooser(values)  # validated already, but the file may have changed
-        except Exception as error:
-            self.get_logger().error(f'keeping {self._describe()}: {error}')
-            return
+    def _apply_settings(self, settings: FuzzyBestPointSettings) -> None:
+        chooser = build_chooser(settings)  # validated already
         with self._lock:
-            self.parameters = values
+            self.settings = settings
             self._chooser = chooser
         self.get_logger().info(f'now choosing with {self._describe()}')
 
     def _on_matches(self, msg: StereoMatches) -> None:
-        header = Header(stamp=msg.header.stamp, frame_id=str(self.parameters['world_frame']))
+        header = Header(stamp=msg.header.stamp, frame_id=self.settings.world.world_frame)
         with self._lock:
             chooser = self._chooser
             self.matches_sequence.observe(int(msg.sequence))
@@ -188,14 +190,14 @@ class FuzzyBestPointNode(Node):
         made = self.decisions[STATUS_OK]
         refused = {reason: self.decisions[reason] for reason in REFUSAL_REASONS}
         status = DiagnosticStatus(name=f'{self.get_name()}: best point',
-                                  hardware_id=self._describe())
+                                  hardware_id=self.get_name())
         if made == 0 and not any(refused.values()):
             status.level, status.message = DiagnosticStatus.OK, 'waiting for input'
         elif self._last_status == STATUS_OK:
             status.level, status.message = DiagnosticStatus.OK, 'choosing best points'
         else:
             status.level, status.message = DiagnosticStatus.WARN, self._last_status
-        values: list[tuple[str, object]] = [('selector', self._chooser.selector),
+        values: list[tuple[str, object]] = [('selector', self._describe()),
                                             ('decisions made', made),
                                             ('decisions refused', sum(refused.values()))]
         values += [(f'refused {reason}', count) for reason, count in refused.items()]
@@ -208,18 +210,8 @@ class FuzzyBestPointNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    """Run the node until shutdown."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = FuzzyBestPointNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Run the node until shutdown; a bad parameter or file ends it with one line."""
+    run_node(FuzzyBestPointNode, args)
 
 
 if __name__ == '__main__':

@@ -4,9 +4,9 @@ Two sources (parameter `source`):
 
 - `topics`: left/image_raw, left/camera_info, right/image_raw, right/camera_info, grouped by
   header stamp by stamp_pairing.StampSynchronizer over the four streams (exact, or within
-  `slop`), as stereo_image_proc synchronises the same four inputs with message_filters.
+  `slop_s`), as stereo_image_proc synchronises the same four inputs with message_filters.
 - `devices`: two OpenCV captures (device index, video file or image pattern) read by a
-  capture thread at `frame_rate`, with calibration from two ROS camera-calibration YAML files.
+  capture thread at `frame_rate_hz`, with calibration from two ROS camera-calibration YAML files.
 
 Every set is checked (encoding, image sizes, calibration) before it is published on
 stereo/pair; a bad set is dropped, counted by reason and reported on /diagnostics.
@@ -14,7 +14,6 @@ stereo/pair; a bad set is dropped, counted by reason and reported on /diagnostic
 
 from __future__ import annotations
 
-import sys
 import threading
 import time
 from collections import Counter, deque
@@ -24,18 +23,14 @@ from typing import Any
 
 import cv2
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
-from rclpy.executors import ExternalShutdownException
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header
-from stereo_fuzzy_parameters.declaration import declare_parameters
-from stereo_fuzzy_parameters.spec import ParameterValue
+from stereo_fuzzy_parameters.declaration import StartupError, declare_settings, run_node
 
 from stereo_fuzzy_msgs.msg import StereoPair
 from stereo_fuzzy_perception.core.camera_calibration_file import (
@@ -54,11 +49,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     image_size_problem,
     stamp_to_ns,
 )
-from stereo_fuzzy_perception.nodes.stereo_sync_parameters import (
-    DEFAULTS,
-    PARAMETERS,
-    check_parameters,
-)
+from stereo_fuzzy_perception.nodes.stereo_sync_parameters import StereoSyncSettings
 
 # The four synchronised input streams, in StampSynchronizer stream order.
 INPUT_TOPICS = ('left/image_raw', 'left/camera_info', 'right/image_raw', 'right/camera_info')
@@ -77,15 +68,12 @@ DROP_REASONS = (
     'right_tx_not_negative',  # right P[0,3] >= 0: not the right camera of a stereo pair
     'missing_camera_info',    # an image dropped unpaired while no camera_info was queued
 )
-# Parameters whose value may be an integer or a string on the command line
-# (`-p left_device:=0` or `-p left_device:=left_%03d.png`): declared with dynamic typing.
-DEVICE_PARAMETERS = ('left_device', 'right_device')
 ERROR_THROTTLE_S = 5.0
-DEFAULT_MAX_IMAGE_PIXELS = int(DEFAULTS['max_image_pixels'])  # type: ignore[arg-type]
+DEFAULT_MAX_IMAGE_PIXELS = StereoSyncSettings().max_image_pixels
 
 
 class StereoSyncSetupError(ValueError):
-    """Parameters or capture sources the node cannot start with, named in the message."""
+    """A capture source the node cannot start with, named in the message."""
 
 
 @dataclass(frozen=True)
@@ -213,13 +201,7 @@ class StereoSyncNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('stereo_sync_node', **kwargs)
-        self.parameters = declare_parameters(
-            self, [spec for spec in PARAMETERS if spec.name not in DEVICE_PARAMETERS],
-            apply=self._apply_parameters)
-        self.parameters.update(self._declare_device_parameters())
-        reason = check_parameters(self.parameters)
-        if reason:
-            raise StereoSyncSetupError(reason)
+        self.settings = declare_settings(self, StereoSyncSettings, apply=self._apply_settings)
         self.statistics = PairStatistics()
         self._reason_loggers: dict[str, RcutilsLogger] = {}
         self._capture: DeviceCapture | None = None
@@ -227,48 +209,33 @@ class StereoSyncNode(Node):
         self.pair_publisher = self.create_publisher(StereoPair, PAIR_TOPIC, qos.RESULTS)
         self.diagnostics_publisher = self.create_publisher(
             DiagnosticArray, DIAGNOSTICS_TOPIC, qos.DIAGNOSTICS)
-        self.create_timer(float(self.parameters['diagnostics_period']), self._publish_diagnostics)
-        if self.parameters['source'] == 'topics':
+        self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
+        if self.settings.source == 'topics':
             self._start_topics()
         else:
-            self._start_devices()
+            try:
+                self._start_devices()
+            except (StereoSyncSetupError, CalibrationFileError) as error:
+                raise StartupError(str(error), self.get_name()) from None
 
     # --- parameters ----------------------------------------------------------------------
 
-    def _declare_device_parameters(self) -> dict[str, ParameterValue]:
-        """Declare the capture sources with dynamic typing and return them as strings.
-
-        `-p left_device:=0` reaches the node as an integer and `:=left_%03d.png` as a
-        string; a statically typed string parameter would reject the first.
-        """
-        values: dict[str, ParameterValue] = {}
-        for spec in PARAMETERS:
-            if spec.name in DEVICE_PARAMETERS:
-                descriptor = ParameterDescriptor(
-                    description=spec.description, read_only=spec.read_only,
-                    additional_constraints='integer device index or string; '
-                                           + spec.constraint_text(),
-                    dynamic_typing=True)
-                value = self.declare_parameter(spec.name, spec.default, descriptor).value
-                values[spec.name] = '' if value is None else str(value)
-        return values
-
-    def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
+    def _apply_settings(self, settings: StereoSyncSettings) -> None:
+        self.settings = settings
         synchronizer = getattr(self, '_synchronizer', None)
         if synchronizer is not None:
-            synchronizer.slop_ns = seconds_to_ns(float(values['slop']))
-            synchronizer.queue_size = int(values['queue_size'])
+            synchronizer.slop_ns = seconds_to_ns(settings.slop_s)
+            synchronizer.queue_size = settings.queue_size
 
     # --- topics source -------------------------------------------------------------------
 
     def _start_topics(self) -> None:
         self._synchronizer: StampSynchronizer[Image | CameraInfo] = StampSynchronizer(
-            len(INPUT_TOPICS), seconds_to_ns(float(self.parameters['slop'])),
-            int(self.parameters['queue_size']))
+            len(INPUT_TOPICS), seconds_to_ns(self.settings.slop_s), self.settings.queue_size)
         base = qos.CAMERA_INPUT
         input_qos = QoSProfile(
             history=base.history, depth=base.depth, durability=base.durability,
-            reliability=qos.reliability_from_name(str(self.parameters['input_reliability'])))
+            reliability=qos.reliability_from_name(self.settings.input_reliability))
         for stream, topic in enumerate(INPUT_TOPICS):
             message_type = Image if stream in (LEFT_IMAGE, RIGHT_IMAGE) else CameraInfo
             self.create_subscription(
@@ -276,8 +243,8 @@ class StereoSyncNode(Node):
                 event_callbacks=SubscriptionEventCallbacks(
                     message_lost=partial(self._on_message_lost, topic)))
         self.get_logger().info(
-            f'pairing {", ".join(INPUT_TOPICS)} by stamp (slop {self.parameters["slop"]} s, '
-            f'queue {self.parameters["queue_size"]}, {self.parameters["input_reliability"]})')
+            f'pairing {", ".join(INPUT_TOPICS)} by stamp (slop {self.settings.slop_s} s, '
+            f'queue {self.settings.queue_size}, {self.settings.input_reliability})')
 
     def _on_input(self, stream: int, msg: Image | CameraInfo) -> None:
         self.statistics.count_received(INPUT_TOPICS[stream])
@@ -301,8 +268,8 @@ class StereoSyncNode(Node):
         if info_stream is None or self._synchronizer.queue_lengths()[info_stream] > 0:
             self.get_logger().warn(
                 f'{topic} message at stamp {evicted.stamp_ns * 1e-9:.6f} s dropped unpaired: '
-                f'no set of all four inputs within slop {self.parameters["slop"]} s '
-                f'(queue_size {self.parameters["queue_size"]})',
+                f'no set of all four inputs within slop_s {self.settings.slop_s} s '
+                f'(queue_size {self.settings.queue_size})',
                 throttle_duration_sec=ERROR_THROTTLE_S)
             return
         info_topic = INPUT_TOPICS[info_stream]
@@ -314,26 +281,30 @@ class StereoSyncNode(Node):
     # --- devices source ------------------------------------------------------------------
 
     def _start_devices(self) -> None:
+        settings = self.settings
         calibrations = []
-        for side in ('left', 'right'):
-            path = str(self.parameters[f'{side}_calibration_file'])
-            calibration = read_calibration_yaml(path)
+        for name, path, frame_id in (
+                ('left_calibration_file', settings.left_calibration_file, settings.left_frame_id),
+                ('right_calibration_file', settings.right_calibration_file,
+                 settings.right_frame_id)):
+            try:
+                calibration = read_calibration_yaml(path)
+            except CalibrationFileError as error:
+                raise CalibrationFileError(f'{name}: {error}') from None
             problem = calibration.problem()
             if problem:
-                raise StereoSyncSetupError(f'{side}_calibration_file {path}: {problem}')
-            calibrations.append(replace(calibration,
-                                        frame_id=str(self.parameters[f'{side}_frame_id'])))
+                raise CalibrationFileError(f'{name}: {path}: unusable calibration: {problem}')
+            calibrations.append(replace(calibration, frame_id=frame_id))
         self._device_calibrations = tuple(calibrations)
-        self._capture = DeviceCapture(
-            str(self.parameters['left_device']), str(self.parameters['right_device']))
+        self._capture = DeviceCapture(settings.left_device, settings.right_device)
         self._capture_state = 'running'
         self._capture_stop = threading.Event()
         self._capture_thread = threading.Thread(
             target=self._capture_loop, name='stereo_capture', daemon=True)
         self._capture_thread.start()
         self.get_logger().info(
-            f'capturing {self.parameters["left_device"]} and {self.parameters["right_device"]} '
-            f'at {self.parameters["frame_rate"]} Hz')
+            f'capturing {settings.left_device} and {settings.right_device} '
+            f'at {settings.frame_rate_hz} Hz')
 
     def _capture_loop(self) -> None:
         try:
@@ -352,7 +323,7 @@ class StereoSyncNode(Node):
             frames = self._capture.read()
             if frames is None:
                 # Rewind once per end: a file that yields nothing even from its start ends.
-                if not self._capture.is_live and self.parameters['loop'] and not rewound:
+                if not self._capture.is_live and self.settings.loop and not rewound:
                     self._capture.rewind()
                     rewound = True
                     continue
@@ -370,13 +341,13 @@ class StereoSyncNode(Node):
             else:
                 rewound = False
                 self._publish_frames(*frames)
-            period = 1.0 / float(self.parameters['frame_rate'])
+            period = 1.0 / self.settings.frame_rate_hz
             next_frame = max(next_frame + period, time.monotonic())
             self._capture_stop.wait(next_frame - time.monotonic())
 
     def _publish_frames(self, left: np.ndarray, right: np.ndarray) -> None:
         header = Header(stamp=self.get_clock().now().to_msg())
-        encoding = str(self.parameters['encoding'])
+        encoding = self.settings.encoding
         messages = []
         for frame, calibration in zip((left, right), self._device_calibrations, strict=True):
             side_header = Header(stamp=header.stamp, frame_id=calibration.frame_id)
@@ -390,7 +361,7 @@ class StereoSyncNode(Node):
                       right_info: CameraInfo) -> None:
         self.statistics.count_in()
         problem = pair_problem(left_image, left_info, right_image, right_info,
-                               int(self.parameters['max_image_pixels']))  # type: ignore[arg-type]
+                               self.settings.max_image_pixels)
         if problem is not None:
             stamp_s = stamp_to_ns(left_image.header.stamp) * 1e-9
             self._drop(problem.reason, f'pair at stamp {stamp_s:.6f} s: {problem.detail}')
@@ -413,10 +384,14 @@ class StereoSyncNode(Node):
         logger.error(f'dropped ({reason}): {detail}', throttle_duration_sec=ERROR_THROTTLE_S)
 
     def _publish_diagnostics(self) -> None:
-        window = float(self.parameters['drop_warn_window'])
+        settings = self.settings
+        window = settings.drop_warn_window_s
         report = self.statistics.report(window)
-        status = DiagnosticStatus(
-            name=f'{self.get_name()}: stereo pairing', hardware_id=str(self.parameters['source']))
+        # The devices this node reads, or the node itself when it reads topics.
+        hardware_id = (f'{settings.left_device} {settings.right_device}'
+                       if settings.source == 'devices' else self.get_name())
+        status = DiagnosticStatus(name=f'{self.get_name()}: stereo pairing',
+                                  hardware_id=hardware_id)
         dropped = {reason: count for reason, count in report['dropped'].items() if count}
         if report['recent_drops']:
             status.level = DiagnosticStatus.WARN
@@ -435,7 +410,7 @@ class StereoSyncNode(Node):
             status.level = DiagnosticStatus.OK
             status.message = 'pairing'
         values = [
-            ('source', self.parameters['source']),
+            ('source', settings.source),
             ('pairs in', report['pairs_in']),
             ('pairs out', report['pairs_out']),
             ('pairs dropped', sum(report['dropped'].values())),
@@ -443,8 +418,8 @@ class StereoSyncNode(Node):
             ('output rate [Hz]', f'{report["output_rate_hz"]:.2f}'),
         ]
         values += [(f'dropped {reason}', count) for reason, count in report['dropped'].items()]
-        if self.parameters['source'] == 'topics':
-            values.append(('slop [s]', self.parameters['slop']))
+        if settings.source == 'topics':
+            values.append(('slop [s]', settings.slop_s))
             values += [(f'received {topic}', report['received'].get(topic, 0))
                        for topic in INPUT_TOPICS]
             values += [(f'unpaired {topic}', report['unpaired'].get(topic, 0))
@@ -484,15 +459,21 @@ class DeviceCapture:
         # Cameras and streams have no end; files and image patterns do.
         self.is_live = (left_source.isdigit() or left_source.startswith('/dev/')
                         or '://' in left_source)
-        self._captures = [self._open(left_source), self._open(right_source)]
+        self._captures = self._open_both()
 
-    @staticmethod
-    def _open(source: str) -> cv2.VideoCapture:
-        capture = cv2.VideoCapture(int(source) if source.isdigit() else source)
-        if not capture.isOpened():
-            raise StereoSyncSetupError(f'cannot open capture {source!r} (a device index, a device '
-                               'path, a video file, or an image pattern such as left_%03d.png)')
-        return capture
+    def _open_both(self) -> list[cv2.VideoCapture]:
+        captures = []
+        for name, source in (('left_device', self.left_source),
+                             ('right_device', self.right_source)):
+            capture = cv2.VideoCapture(int(source) if source.isdigit() else source)
+            if not capture.isOpened():
+                for opened in captures:
+                    opened.release()
+                raise StereoSyncSetupError(
+                    f'{name}={source!r}: cannot open the capture (allowed: a device index, a '
+                    'device path, a video file, or an image pattern such as left_%03d.png)')
+            captures.append(capture)
+        return captures
 
     def read(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Return the next (left, right) frames, or None when either capture has none."""
@@ -506,7 +487,7 @@ class DeviceCapture:
     def rewind(self) -> None:
         """Reopen both files at their first frame."""
         self.release()
-        self._captures = [self._open(self.left_source), self._open(self.right_source)]
+        self._captures = self._open_both()
 
     def release(self) -> None:
         """Release both captures."""
@@ -526,25 +507,8 @@ def convert_frame(frame: np.ndarray, encoding: str) -> np.ndarray:
 
 
 def main(args: list[str] | None = None) -> None:
-    """Run the node until shutdown."""
-    rclpy.init(args=args)
-    node = None
-    failed = False
-    try:
-        node = StereoSyncNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (StereoSyncSetupError, CalibrationFileError) as error:
-        # Wiring mistakes: one clear line instead of a traceback.
-        rclpy.logging.get_logger('stereo_sync_node').fatal(f'cannot start: {error}')
-        failed = True
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    if failed:
-        sys.exit(1)
+    """Run the node until shutdown; a bad parameter, file or device ends it with one line."""
+    run_node(StereoSyncNode, args)
 
 
 if __name__ == '__main__':

@@ -1,0 +1,68 @@
+"""A value a node cannot start with ends it with ONE line naming the parameter, the value and
+what is allowed, and a non-zero exit code; no traceback. The executables start as `ros2 run`
+would start them, with the bad value on the command line."""
+
+import pytest
+from ros_waiting import wait_until
+
+pytestmark = pytest.mark.ros
+
+TIMEOUT = 120.0  # [s] generous: the first start of a node imports numpy, OpenCV and numba
+
+# (executable, --ros-args parameters, words the one line must hold: name, value, allowed)
+BAD_STARTS = [
+    ('correlation_node', ['window_size:=10'], ['window_size', '10', 'odd']),
+    ('correlation_node', ['window_size:=40'], ['window_size', '40', 'allowed [3, 31]']),
+    ('correlation_node', ['window_size:=abc'], ['window_size', "'abc'", 'an integer']),
+    ('correlation_node', ['method:=foo'], ['method', "'foo'", 'zncc, plain']),
+    ('fuzzy_best_point_node', ['rule_base_file:=/nope.yaml'],
+     ['rule_base_file', "'/nope.yaml'", 'rule base']),
+    ('fuzzy_best_point_node', ['workspace_max_m:=[0.4,0.3]'],
+     ['workspace_max_m', '[0.4, 0.3]', 'allowed: 3 values']),
+    ('fuzzy_best_point_node', ['workspace_max_m:=[0.4,0.3,-0.1]'],
+     ['workspace_max_m', '-0.1', 'must exceed workspace_min_m']),
+    ('stereo_sync_node', ['slop_s:=1'], ['slop_s', '1', 'floating-point number']),
+    ('stereo_sync_node', ['source:=devices'],
+     ['source=devices', 'left_device', 'right_calibration_file']),
+    ('stereo_sync_node', ['source:=devices', 'left_device:=0', 'right_device:=1',
+                          'left_calibration_file:=/nope.yaml',
+                          'right_calibration_file:=/nope.yaml'],
+     ['left_calibration_file', '/nope.yaml', 'calibration file']),
+]
+
+
+@pytest.mark.parametrize(('executable', 'parameters', 'words'), BAD_STARTS,
+                         ids=[f'{entry[0]}-{entry[1][-1]}' for entry in BAD_STARTS])
+def test_bad_start_up_value_ends_the_node_with_one_fatal_line(
+        start_ros_process, executable, parameters, words):
+    arguments = ['--ros-args']
+    for parameter in parameters:
+        arguments += ['-p', parameter]
+    process = start_ros_process('stereo_fuzzy_perception', executable, *arguments)
+    try:
+        process.process.wait(TIMEOUT)
+    except Exception:
+        pytest.fail(f'{executable} {parameters} still runs after {TIMEOUT} s:\n'
+                    f'{process.output()}')
+    output = process.output()
+    lines = [line for line in output.splitlines() if line.strip()]
+    assert process.process.returncode != 0, f'{executable} exited 0 with {parameters}'
+    assert 'Traceback' not in output, output
+    assert len(lines) == 1, f'one line expected, {len(lines)} printed:\n{output}'
+    assert '[FATAL]' in lines[0] and f'[{executable}]' in lines[0], lines[0]
+    for word in words:
+        assert word in lines[0], f'{word!r} missing from the start-up error: {lines[0]}'
+
+
+def test_a_parameter_the_node_does_not_have_is_named_with_the_closest_one(start_ros_process):
+    process = start_ros_process('stereo_fuzzy_perception', 'stereo_sync_node', '--ros-args',
+                                '-p', 'slop:=0.02')
+    wait_until(lambda: 'pairing' in process.output() or process.process.poll() is not None,
+               TIMEOUT, 'stereo_sync_node to start')
+    assert process.process.poll() is None, (
+        f'an unknown name must not stop the node:\n{process.output()}')
+    warnings = [line for line in process.output().splitlines() if '[WARN]' in line]
+    assert len(warnings) == 1, process.output()
+    assert 'slop is not a parameter of stereo_sync_node' in warnings[0], warnings[0]
+    assert 'did you mean slop_s?' in warnings[0], warnings[0]
+    assert process.interrupt() == 0, process.output()
