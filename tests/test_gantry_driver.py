@@ -14,6 +14,8 @@ from gantry_harness import GantryClient, at, start_simulator
 pytestmark = pytest.mark.ros
 
 PREAMBLE = ['G21 G90 G94']
+#: Lines written after each connection: read the settings ($$), then the preamble.
+CONNECT = ['$$'] + PREAMBLE
 MOVE_100_200_50 = ['G53 G1 Z150.000 F1000.0', 'G53 G1 X100.000 Y200.000 F1500.0',
                    'G53 G1 Z50.000 F1000.0']
 MOVE_300_0_15 = ['G53 G1 Z150.000 F1000.0', 'G53 G1 X300.000 Y0.000 F1500.0']
@@ -43,7 +45,7 @@ def test_best_point_sends_the_expected_lines_and_ends_idle_at_the_target(gantry)
     state = client.wait_state(lambda s: s.state == 'Idle' and at(s.world_position, 0.1, 0.2, 0.05),
                               'Idle at (0.1, 0.2, 0.05)')
     assert at(state.machine_position, 0.1, 0.2, 0.05)     # default: machine mm = world m * 1000
-    assert client.sent_lines() == PREAMBLE + MOVE_100_200_50
+    assert client.sent_lines() == CONNECT + MOVE_100_200_50
     assert client.received_lines() == client.sent_lines()
     assert simulator.controller.position == [100.0, 200.0, 50.0]
     client.wait(lambda: client.joints and client.joints[-1].position[0] == pytest.approx(0.1),
@@ -51,9 +53,9 @@ def test_best_point_sends_the_expected_lines_and_ends_idle_at_the_target(gantry)
     joints = client.joints[-1]
     assert list(joints.name) == ['gantry_x_joint', 'gantry_y_joint', 'gantry_z_joint']
     assert list(joints.position) == pytest.approx([0.1, 0.2, 0.05])
-    client.wait(lambda: any(kv.key == 'lines_sent' and kv.value == '4'
+    client.wait(lambda: any(kv.key == 'lines_sent' and kv.value == '5'
                             for msg in client.diagnostics for kv in msg.status[0].values),
-                '/diagnostics reporting 4 lines sent')
+                '/diagnostics reporting 5 lines sent')
 
 
 def test_action_feedback_follows_the_controller_and_result_waits_for_idle(gantry):
@@ -91,7 +93,7 @@ def test_bad_best_points_are_rejected_with_their_reason_and_nothing_moves(
     client.publish_target(*target, **kwargs)
     state = client.wait_state(lambda s: s.last_rejection, 'a rejection')
     assert reason in state.last_rejection
-    assert client.sent_lines() == PREAMBLE
+    assert client.sent_lines() == CONNECT
     assert simulator.controller.position == [0.0, 0.0, 0.0]
 
 
@@ -103,7 +105,7 @@ def test_bad_action_goals_fail_with_their_reason(gantry):
     assert 'y=0.3500 m is outside the workspace' in outside.outcome
     wrong_frame = client.result_of(client.send_goal(0.1, 0.1, 0.0, frame_id='map'))
     assert "frame_id 'map'" in wrong_frame.outcome
-    assert client.sent_lines() == PREAMBLE
+    assert client.sent_lines() == CONNECT
 
 
 def test_approach_offset_that_leaves_the_workspace_is_rejected(gantry):
@@ -112,7 +114,7 @@ def test_approach_offset_that_leaves_the_workspace_is_rejected(gantry):
     client.publish_target(0.1, 0.1, 0.18)
     state = client.wait_state(lambda s: s.last_rejection, 'a rejection')
     assert 'z=0.2300 m is outside' in state.last_rejection
-    assert client.sent_lines() == PREAMBLE
+    assert client.sent_lines() == CONNECT
 
 
 def test_error_reply_stops_streaming_and_requires_unlock(gantry):
@@ -126,10 +128,10 @@ def test_error_reply_stops_streaming_and_requires_unlock(gantry):
     assert 'invalid target' in state.last_error_text
     assert state.homing_required
     # Streaming stopped at the refused line: the descent was never sent.
-    assert client.sent_lines() == PREAMBLE + MOVE_100_200_50[:2]
+    assert client.sent_lines() == CONNECT + MOVE_100_200_50[:2]
     refused = client.result_of(client.send_goal(0.2, 0.1, 0.0))
     assert 'call gantry/unlock or gantry/home' in refused.outcome
-    assert client.sent_lines() == PREAMBLE + MOVE_100_200_50[:2]
+    assert client.sent_lines() == CONNECT + MOVE_100_200_50[:2]
     simulator.controller.set_faults(FaultInjection())
     assert client.call('unlock').success
     result = client.result_of(client.send_goal(0.2, 0.1, 0.0))
@@ -174,7 +176,7 @@ def test_stop_holds_then_resets_and_keeps_the_position(gantry):
     assert at(state.machine_position, *(v / 1000.0 for v in stopped_at))
     # The move's lines were all planned at once; after the reset only the preamble was sent.
     sent = client.sent_lines()
-    assert sent[-1:] == PREAMBLE and sent[1:-1] == MOVE_300_0_15[:len(sent) - 2]
+    assert sent[-1:] == PREAMBLE and sent[2:-1] == MOVE_300_0_15[:len(sent) - 3]
     assert client.received_lines() == sent
 
 
@@ -208,8 +210,8 @@ def test_queue_policy_runs_moves_one_after_another(gantry):
 
 
 @pytest.mark.parametrize(('fault', 'reason'), [
-    (FaultInjection(drop_reply_to_line=3), "no reply to 'G53 G1 X100.000 Y200.000 F1500.0'"),
-    (FaultInjection(garble_reply_to_line=3), 'unrecognised reply'),
+    (FaultInjection(drop_reply_to_line=4), "no reply to 'G53 G1 X100.000 Y200.000 F1500.0'"),
+    (FaultInjection(garble_reply_to_line=4), 'unrecognised reply'),
 ])
 def test_lost_or_garbled_reply_stops_and_nothing_is_lost_or_sent_twice(gantry, fault, reason):
     simulator, client = gantry({'reply_timeout_s': 0.5}, faults=fault, reply_delay_s=0.01)
@@ -219,7 +221,7 @@ def test_lost_or_garbled_reply_stops_and_nothing_is_lost_or_sent_twice(gantry, f
     assert reason in result.outcome
     state = client.wait_state(lambda s: s.homing_required, 'the fault latched')
     assert not state.connected or state.homing_required
-    assert client.sent_lines() == PREAMBLE + MOVE_100_200_50[:2]
+    assert client.sent_lines() == CONNECT + MOVE_100_200_50[:2]
     assert client.received_lines() == client.sent_lines()
     assert client.call('unlock').success
     assert client.result_of(client.send_goal(0.2, 0.1, 0.0)).success
@@ -235,13 +237,13 @@ def test_character_counting_streams_moves_with_delayed_replies(gantry):
     results = [client.result_of(handle) for handle in handles]
     assert all(result.success for result in results), [r.outcome for r in results]
     assert simulator.controller.rx_overflow_bytes == 0
-    assert len(client.sent_lines()) == 1 + 3 * len(targets)
+    assert len(client.sent_lines()) == len(CONNECT) + 3 * len(targets)
     assert client.received_lines() == client.sent_lines()
 
 
 def test_reconnect_after_the_device_vanishes_requires_homing_and_replays_nothing(gantry):
-    # Lines: 1 $H, 2 preamble, 3 lift, 4 XY: the pty disappears right after the XY line.
-    simulator, client = gantry(homing=True, vanish_on_line=4, vanish_duration_s=0.5,
+    # Lines: 1 $$, 2 $H, 3 preamble, 4 lift, 5 XY: the pty disappears right after the XY line.
+    simulator, client = gantry(homing=True, vanish_on_line=5, vanish_duration_s=0.5,
                                time_scale=20.0)
     client.wait_state(lambda s: s.state == 'Alarm', 'the controller booting in Alarm')
     assert client.call('home').success
@@ -251,8 +253,9 @@ def test_reconnect_after_the_device_vanishes_requires_homing_and_replays_nothing
     client.wait_state(lambda s: s.state == 'Alarm' and s.homing_required,
                       'reconnected to a rebooted controller')
     assert any(s.state == 'Disconnected' and not s.connected for s in client.states)
-    sent_before = client.sent_lines()
-    assert sent_before == ['$H'] + PREAMBLE + MOVE_100_200_50[:2]
+    # What went out before the device vanished (the new connection's $$ may follow already).
+    sent_before = client.sent_lines()[:5]
+    assert sent_before == ['$$', '$H'] + PREAMBLE + MOVE_100_200_50[:2]
     refused = client.result_of(client.send_goal(0.1, 0.2, 0.05))
     assert 'controller in Alarm' in refused.outcome or 'homing required' in refused.outcome
     # Unlocking is not enough after a reconnection: the position is not trusted.
@@ -266,7 +269,8 @@ def test_reconnect_after_the_device_vanishes_requires_homing_and_replays_nothing
     assert result.success, result.outcome
     sent = client.sent_lines()
     assert sent[:len(sent_before)] == sent_before
-    assert sent[len(sent_before):] == ['$X'] + PREAMBLE + ['$H'] + PREAMBLE + MOVE_100_200_50
+    assert sent[len(sent_before):] == (['$$', '$X'] + PREAMBLE + ['$H'] + PREAMBLE
+                                      + MOVE_100_200_50)
     assert client.received_lines() == sent
 
 
@@ -281,7 +285,7 @@ def test_disconnected_until_a_controller_appears_then_connects(ros_context, tmp_
         simulator = start_simulator(tmp_path)
         state = client.wait_ready()
         assert not state.homing_required          # never connected before: no homing needed
-        assert client.sent_lines() == PREAMBLE
+        assert client.sent_lines() == CONNECT
     finally:
         client.close()
         if simulator is not None:

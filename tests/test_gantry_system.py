@@ -63,7 +63,7 @@ def test_best_point_to_idle_at_target_across_processes(ros_context, start_ros_pr
     assert driver.interrupt() == 0, driver.output()
     assert simulator.interrupt() == 0, simulator.output()
     sent = sent_log.read_text().splitlines()
-    assert sent == ['G21 G90 G94', 'G53 G1 Z150.000 F1000.0', 'G53 G1 X250.000 Y150.000 F1500.0',
-                    'G53 G1 Z20.000 F1000.0']
+    assert sent == ['$$', 'G21 G90 G94', 'G53 G1 Z150.000 F1000.0',
+                    'G53 G1 X250.000 Y150.000 F1500.0', 'G53 G1 Z20.000 F1000.0']
     assert received_log.read_text().splitlines() == sent
     assert 'fake_gantry serving Grbl on /dev/pts/' in simulator.output()

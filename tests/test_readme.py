@@ -76,8 +76,6 @@ def test_readme_parameter_tables_match_the_declared_defaults():
 @pytest.mark.parametrize('config_file', CONFIG_FILES,
                          ids=[str(path.relative_to(REPO_ROOT)) for path in CONFIG_FILES])
 def test_config_files_set_declared_parameters_to_values_other_than_the_defaults(config_file):
-    if config_file.parent == REPO_ROOT / 'src' / 'cartesian_3p_driver' / 'config':
-        pytest.skip('the driver still ships its defaults as config files (moved last)')
     tables = _tables_module()
     document = yaml.safe_load(config_file.read_text())
     for node, section in document.items():

@@ -9,6 +9,11 @@ pytestmark = pytest.mark.ros
 
 TIMEOUT = 120.0  # [s] generous: the first start of a node imports numpy, OpenCV and numba
 
+PACKAGE_OF = {'stereo_sync_node': 'stereo_fuzzy_perception',
+              'correlation_node': 'stereo_fuzzy_perception',
+              'fuzzy_best_point_node': 'stereo_fuzzy_perception',
+              'gantry_driver_node': 'cartesian_3p_driver', 'fake_gantry': 'cartesian_3p_driver'}
+
 # (executable, --ros-args parameters, words the one line must hold: name, value, allowed)
 BAD_STARTS = [
     ('correlation_node', ['window_size:=10'], ['window_size', '10', 'odd']),
@@ -28,6 +33,16 @@ BAD_STARTS = [
                           'left_calibration_file:=/nope.yaml',
                           'right_calibration_file:=/nope.yaml'],
      ['left_calibration_file', '/nope.yaml', 'calibration file']),
+    ('gantry_driver_node', ['port:=/nonexistent', 'workspace_min_m:=[0.0,0.0,0.3]'],
+     ['workspace_max_m', 'workspace_min_m=[0.0, 0.0, 0.3]', 'must exceed']),
+    ('gantry_driver_node', ['port:=/nonexistent', 'new_target_policy:=drop'],
+     ['new_target_policy', "'drop'", 'queue, replace']),
+    ('fake_gantry', ['tcp_port:=0', 'max_travel_mm:=[400.0,300.0]'],
+     ['max_travel_mm', '[400.0, 300.0]', 'allowed: 3 values']),
+    ('fake_gantry', ['tcp_port:=0', 'soft_limits:=true', 'homing_enabled:=false'],
+     ['soft_limits=true', 'homing_enabled=true']),
+    ('fake_gantry', ['tcp_port:=0', 'link_path:=/nonexistent/dir/tty'],
+     ['link_path', '/nonexistent/dir/tty', 'No such file']),
 ]
 
 
@@ -38,7 +53,7 @@ def test_bad_start_up_value_ends_the_node_with_one_fatal_line(
     arguments = ['--ros-args']
     for parameter in parameters:
         arguments += ['-p', parameter]
-    process = start_ros_process('stereo_fuzzy_perception', executable, *arguments)
+    process = start_ros_process(PACKAGE_OF[executable], executable, *arguments)
     try:
         process.process.wait(TIMEOUT)
     except Exception:

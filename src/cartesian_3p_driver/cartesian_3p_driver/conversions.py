@@ -14,7 +14,7 @@ from stereo_fuzzy_msgs.action import MoveTo
 from stereo_fuzzy_msgs.msg import GantryState
 
 from .gcode import Vector3
-from .grbl_link import GantrySnapshot, MoveFeedback, MoveFinished
+from .link_events import GantrySnapshot, MoveFeedback, MoveFinished
 
 
 def target_from_point_stamped(msg: PointStamped, now_ns: int) -> tuple[Vector3, str, float | None]:
@@ -48,7 +48,10 @@ def to_gantry_state(snapshot: GantrySnapshot, last_rejection: str, stamp: Time,
         feed_rate_mm_min=float(snapshot.feed_mm_min),
         pins=snapshot.pins,
         last_error_code=snapshot.last_error_code,
-        last_error_text=snapshot.last_error_text,
+        # A settings mismatch has no Grbl code: it shows as a text with code 0.
+        last_error_text=snapshot.last_error_text or (
+            f'controller settings refuse motion: {snapshot.settings_problem}'
+            if snapshot.settings_problem else ''),
         last_alarm_code=snapshot.last_alarm_code,
         last_alarm_text=snapshot.last_alarm_text,
         last_rejection=last_rejection,
@@ -70,13 +73,16 @@ def to_joint_state(snapshot: GantrySnapshot, joint_names: Sequence[str],
 def to_diagnostics(snapshot: GantrySnapshot, name: str, stamp: Time) -> DiagnosticArray:
     """Return /diagnostics for the serial link: connection, line counts, last error."""
     if snapshot.fault or snapshot.state in ('Alarm', 'Disconnected'):
-        level, message = DiagnosticStatus.ERROR, snapshot.fault or snapshot.link_state
+        level = DiagnosticStatus.ERROR
+        message = snapshot.fault or snapshot.link_state
+        if snapshot.link_error and snapshot.link_error not in message:
+            message = f'{message} ({snapshot.link_error})'
     elif snapshot.homing_required or not snapshot.connected:
         level, message = DiagnosticStatus.WARN, snapshot.link_state
     else:
         level, message = DiagnosticStatus.OK, f'{snapshot.state}, {snapshot.link_state}'
     last_error = (f'error:{snapshot.last_error_code} {snapshot.last_error_text}'
-                  if snapshot.last_error_code else '')
+                  if snapshot.last_error_code else snapshot.link_error)
     last_alarm = (f'ALARM:{snapshot.last_alarm_code} {snapshot.last_alarm_text}'
                   if snapshot.last_alarm_code else '')
     values = {
@@ -92,6 +98,8 @@ def to_diagnostics(snapshot: GantrySnapshot, name: str, stamp: Time) -> Diagnost
         'last_error': last_error,
         'last_alarm': last_alarm,
         'fault': snapshot.fault,
+        'controller_settings': snapshot.settings_problem or (
+            'fit the driver parameters' if snapshot.connected else 'not checked yet'),
     }
     status = DiagnosticStatus(level=level, name=f'{name}: serial link', message=message,
                               hardware_id=snapshot.port,

@@ -1,6 +1,7 @@
 """Drive a Grbl-compatible 3-axis gantry from best points over a serial line.
 
-A thin adapter around GrblLink (grbl_link.py). Threading: the serial port belongs to the
+A thin adapter around GrblLink (grbl_link.py), the serial runner of the sans-I/O
+GrblSession (grbl_session.py). Threading: the serial port belongs to the
 link's own I/O thread, so a slow or dead controller never blocks this node's executor. The
 link hands events back through a thread-safe queue and a guard condition; the guard
 condition's callback runs in the executor, which is the only thread that publishes, completes
@@ -15,19 +16,16 @@ from __future__ import annotations
 import queue
 from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
-from stereo_fuzzy_parameters.declaration import declare_parameters
-from stereo_fuzzy_parameters.spec import ParameterValue
+from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 
 from stereo_fuzzy_msgs.action import MoveTo
 from stereo_fuzzy_msgs.msg import GantryState
@@ -41,79 +39,42 @@ from .conversions import (
     to_joint_state,
     to_result,
 )
-from .gantry_driver_parameters import PARAMETERS
+from .gantry_driver_parameters import GantryDriverSettings
 from .gcode import (
-    MachineTransform,
-    MotionConfig,
-    MotionConfigError,
     TargetRejectedError,
     Vector3,
-    WorkspaceLimits,
-    as_vector3,
+    check_feed,
     check_target,
     plan_move,
 )
-from .grbl_link import (
+from .grbl_link import GrblLink, LinkConfig
+from .link_events import (
     GantrySnapshot,
-    GrblLink,
-    LinkConfig,
     LinkEvent,
     MoveFeedback,
     MoveFinished,
     RequestFinished,
+    SessionConfig,
 )
 
 
-def motion_config_from(values: dict[str, Any]) -> MotionConfig:
-    """Build the motion configuration from parameter values.
-
-    Raises:
-        MotionConfigError: When the values contradict each other.
-    """
-    return MotionConfig(
-        transform=MachineTransform(as_vector3(values['machine_offset_mm'], 'machine_offset_mm'),
-                                   as_vector3(values['axis_scale_mm_per_m'],
-                                              'axis_scale_mm_per_m')),
-        limits=WorkspaceLimits(as_vector3(values['workspace_min_m'], 'workspace_min_m'),
-                               as_vector3(values['workspace_max_m'], 'workspace_max_m')),
-        approach=values['approach_strategy'],
-        safe_z_m=values['safe_z_m'],
-        approach_offset_m=values['approach_offset_m'],
-        default_feed_mm_min=values['feed_rate_mm_min'],
-        max_rate_mm_min=as_vector3(values['max_rate_mm_min'], 'max_rate_mm_min'),
+def link_config_from(settings: GantryDriverSettings) -> LinkConfig:
+    """Build the serial link configuration from the node's settings."""
+    session = SessionConfig(
+        streaming_mode=settings.streaming_mode, poll_period_s=1.0 / settings.poll_rate_hz,
+        banner_timeout_s=settings.banner_timeout_s, reply_timeout_s=settings.reply_timeout_s,
+        homing_timeout_s=settings.homing_timeout_s, link_timeout_s=settings.link_timeout_s,
+        stop_timeout_s=settings.stop_timeout_s, new_target_policy=settings.new_target_policy,
+        max_queued_moves=settings.max_queued_moves,
+        position_tolerance_mm=settings.position_tolerance_mm,
+        require_homing_at_start=settings.require_homing_at_start,
     )
-
-
-def link_config_from(values: dict[str, Any]) -> LinkConfig:
-    """Build the serial link configuration from parameter values."""
     return LinkConfig(
-        port=values['port'], baud=values['baud'], streaming_mode=values['streaming_mode'],
-        poll_period_s=1.0 / values['poll_rate_hz'],
-        banner_timeout_s=values['banner_timeout_s'], reply_timeout_s=values['reply_timeout_s'],
-        homing_timeout_s=values['homing_timeout_s'], link_timeout_s=values['link_timeout_s'],
-        stop_timeout_s=values['stop_timeout_s'],
-        reconnect_initial_s=values['reconnect_initial_s'],
-        reconnect_max_s=values['reconnect_max_s'],
-        new_target_policy=values['new_target_policy'],
-        max_queued_moves=values['max_queued_moves'],
-        position_tolerance_mm=values['position_tolerance_mm'],
-        require_homing_at_start=values['require_homing_at_start'],
-        sent_lines_log=values['sent_lines_log'],
+        port=settings.port, baud=settings.baud,
+        reconnect_initial_s=settings.reconnect_initial_s,
+        reconnect_max_s=settings.reconnect_max_s,
+        sent_lines_log=settings.sent_lines_log, session=session,
     )
-
-
-def validate_parameters(values: dict[str, ParameterValue]) -> str | None:
-    """Return why these parameter values cannot work together, or None."""
-    try:
-        motion_config_from(values)
-    except MotionConfigError as error:
-        return str(error)
-    if len(values['joint_names']) != 3:  # type: ignore[arg-type]
-        return f'joint_names needs 3 names, got {values["joint_names"]!r}'
-    if values['link_timeout_s'] <= 1.0 / values['poll_rate_hz']:  # type: ignore[operator]
-        return (f'link_timeout_s={values["link_timeout_s"]} s must exceed the polling period '
-                f'1/poll_rate_hz={1.0 / values["poll_rate_hz"]:.2f} s')  # type: ignore[operator]
-    return None
 
 
 class GantryDriverNode(Node):
@@ -121,11 +82,10 @@ class GantryDriverNode(Node):
 
     def __init__(self, **node_options: Any) -> None:
         super().__init__('gantry_driver_node', **node_options)
-        self.parameters = declare_parameters(self, PARAMETERS, validate=validate_parameters,
-                                             apply=self._apply_parameters)
-        values = self.parameters
-        self._motion = motion_config_from(values)
-        self._snapshot = GantrySnapshot()
+        self.settings = declare_settings(self, GantryDriverSettings, apply=self._apply_settings)
+        settings = self.settings
+        self._motion = settings.motion_config()
+        self._snapshot = GantrySnapshot(port=settings.port)
         self._last_rejection = ''
         self._events: queue.SimpleQueue[LinkEvent] = queue.SimpleQueue()
         self._move_futures: dict[int, Future] = {}
@@ -147,23 +107,23 @@ class GantryDriverNode(Node):
             goal_callback=lambda goal: GoalResponse.ACCEPT,
             cancel_callback=self._cancel_move, callback_group=group)
         self._wakeup = self.create_guard_condition(self._drain_link_events, group)
-        self._diagnostics_timer = self.create_timer(values['diagnostics_period_s'],
+        self._diagnostics_timer = self.create_timer(settings.diagnostics_period_s,
                                                     self._publish_diagnostics,
                                                     callback_group=group)
-        self._link = GrblLink(link_config_from(values), self._motion, self._on_link_event,
+        self._link = GrblLink(link_config_from(settings), self._motion, self._on_link_event,
                               self._on_link_log)
         self._publish_state()
         self._link.start()
-        self.get_logger().info(f'gantry_driver_node driving {values["port"]} '
-                               f'({values["streaming_mode"]}, {values["new_target_policy"]})')
+        self.get_logger().info(f'gantry_driver_node driving {settings.port} '
+                               f'({settings.streaming_mode}, {settings.new_target_policy})')
 
     # -- parameters ---------------------------------------------------------------------------
 
-    def _apply_parameters(self, values: dict[str, ParameterValue]) -> None:
-        self._motion = motion_config_from(values)
-        self._link.motion = self._motion  # replaced whole; the I/O thread reads it per move
-        self._link.config = link_config_from(values)
-        self._diagnostics_timer.timer_period_ns = int(values['diagnostics_period_s'] * 1e9)  # type: ignore[operator]
+    def _apply_settings(self, settings: GantryDriverSettings) -> None:
+        self.settings = settings
+        self._motion = settings.motion_config()
+        self._link.reconfigure(link_config_from(settings), self._motion)
+        self._diagnostics_timer.timer_period_ns = int(settings.diagnostics_period_s * 1e9)
 
     # -- link events (I/O thread -> executor) -------------------------------------------------
 
@@ -222,8 +182,8 @@ class GantryDriverNode(Node):
     def _publish_state(self) -> None:
         stamp = self.get_clock().now().to_msg()
         self._state_pub.publish(to_gantry_state(self._snapshot, self._last_rejection, stamp,
-                                                self.parameters['world_frame']))
-        joints = to_joint_state(self._snapshot, self.parameters['joint_names'], stamp)
+                                                self.settings.world.world_frame))
+        joints = to_joint_state(self._snapshot, self.settings.joint_names, stamp)
         if joints is not None:
             self._joint_pub.publish(joints)
 
@@ -238,16 +198,20 @@ class GantryDriverNode(Node):
         point, frame_id, age_s = target_from_point_stamped(
             msg, self.get_clock().now().nanoseconds)
         try:
-            target = check_target(point, frame_id, self.parameters['world_frame'], age_s,
-                                  self.parameters['max_target_age_s'], self._motion.limits)
+            target = check_target(point, frame_id, self.settings.world.world_frame, age_s,
+                                  self.settings.max_target_age_s, self._motion.limits)
             plan_move(target, None, 0.0, self._motion)  # the approach offset must fit too
         except TargetRejectedError as error:
-            self._last_rejection = f'{source}: {error.reason}'
-            self.get_logger().warning(f'rejected target from {source}: {error.reason}',
-                                      throttle_duration_sec=1.0)
-            self._publish_state()
+            self._reject(source, error.reason)
             return None
         return target
+
+    def _reject(self, source: str, reason: str) -> None:
+        """Log a refused request once per second at most and show it in gantry/state."""
+        self._last_rejection = f'{source}: {reason}'
+        self.get_logger().warning(f'rejected target from {source}: {reason}',
+                                  throttle_duration_sec=1.0)
+        self._publish_state()
 
     def _on_best_point(self, msg: PointStamped) -> None:
         target = self._validate_target(msg, 'best_point')
@@ -257,6 +221,12 @@ class GantryDriverNode(Node):
     async def _execute_move(self, goal_handle: ServerGoalHandle) -> MoveTo.Result:
         request = goal_handle.request
         target = self._validate_target(request.target, 'gantry/move_to')
+        if target is not None:
+            try:
+                check_feed(request.feed_rate_mm_min, self._motion)
+            except TargetRejectedError as error:
+                self._reject('gantry/move_to', error.reason)
+                target = None
         if target is None:
             goal_handle.abort()
             return to_result(MoveFinished(0, False, f'refused: {self._last_rejection}',
@@ -304,18 +274,8 @@ class GantryDriverNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    """Run the node until shutdown."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = GantryDriverNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Run the node until shutdown; a bad parameter ends it with one FATAL line, exit code 1."""
+    run_node(GantryDriverNode, args)
 
 
 if __name__ == '__main__':

@@ -20,6 +20,12 @@ AXES = ('X', 'Y', 'Z')
 APPROACH_STRATEGIES = ('lift_xy_descend', 'direct')
 #: Resolution of coordinates sent to the controller [mm].
 COORDINATE_DECIMALS = 3
+#: Largest machine coordinate the driver sends [mm]: any line then fits Grbl's 80 characters.
+MAX_MACHINE_COORDINATE_MM = 100_000.0
+#: Accepted magnitudes of a world -> machine axis scale [mm/m].
+AXIS_SCALE_RANGE_MM_PER_M = (1.0, 100_000.0)
+#: Largest feed or axis rate the driver sends [mm/min].
+MAX_FEED_MM_MIN = 100_000.0
 
 
 class TargetRejectedError(ValueError):
@@ -57,12 +63,17 @@ class MachineTransform:
     scale_mm_per_m: Vector3 = (1000.0, 1000.0, 1000.0)
 
     def __post_init__(self) -> None:
+        low, high = AXIS_SCALE_RANGE_MM_PER_M
         for axis, scale in zip(AXES, self.scale_mm_per_m, strict=True):
-            if not math.isfinite(scale) or scale == 0.0:
-                raise MotionConfigError(f'axis scale for {axis} must be finite and non-zero, '
-                                        f'got {scale}')
-        if not all(math.isfinite(value) for value in self.offset_mm):
-            raise MotionConfigError(f'machine offset must be finite, got {self.offset_mm}')
+            if not (math.isfinite(scale) and low <= abs(scale) <= high):
+                raise MotionConfigError(
+                    f'axis_scale_mm_per_m: the scale for {axis} is {scale}; allowed: '
+                    f'{low:g} <= |scale| <= {high:g} mm/m, negative flips the axis')
+        for axis, offset in zip(AXES, self.offset_mm, strict=True):
+            if not (math.isfinite(offset) and abs(offset) <= MAX_MACHINE_COORDINATE_MM):
+                raise MotionConfigError(
+                    f'machine_offset_mm: the offset for {axis} is {offset}; allowed: '
+                    f'|offset| <= {MAX_MACHINE_COORDINATE_MM:g} mm')
 
     def to_machine(self, world_m: Vector3) -> Vector3:
         """Map a world point [m] to machine coordinates [mm]."""
@@ -86,10 +97,10 @@ class WorkspaceLimits:
 
     def __post_init__(self) -> None:
         for axis, low, high in zip(AXES, self.minimum_m, self.maximum_m, strict=True):
-            if not (math.isfinite(low) and math.isfinite(high)) or low > high:
+            if not (math.isfinite(low) and math.isfinite(high)) or low >= high:
                 raise MotionConfigError(
-                    f'workspace limits for {axis} must be finite with min <= max, '
-                    f'got [{low}, {high}]')
+                    f'workspace_min_m/workspace_max_m: the {axis} limits are [{low}, {high}] m; '
+                    'allowed: finite numbers with min < max')
 
     def violation(self, point_m: Vector3) -> str | None:
         """Return which axis of `point_m` [m] lies outside the box and by how much, or None."""
@@ -113,6 +124,7 @@ class MotionConfig:
         approach_offset_m: The tool stops this far above the target's z [m].
         default_feed_mm_min: Feed when a request gives none [mm/min].
         max_rate_mm_min: Per-axis maximum rates (x, y, z) [mm/min].
+        min_feed_mm_min: Slowest feed a request may ask for [mm/min].
     """
 
     transform: MachineTransform = field(default_factory=MachineTransform)
@@ -122,6 +134,7 @@ class MotionConfig:
     approach_offset_m: float = 0.0
     default_feed_mm_min: float = 1500.0
     max_rate_mm_min: Vector3 = (3000.0, 3000.0, 1000.0)
+    min_feed_mm_min: float = 10.0
 
     def __post_init__(self) -> None:
         if self.approach not in APPROACH_STRATEGIES:
@@ -134,12 +147,29 @@ class MotionConfig:
         if not math.isfinite(self.approach_offset_m):
             raise MotionConfigError(f'approach_offset_m must be finite, got '
                                     f'{self.approach_offset_m}')
-        if not (math.isfinite(self.default_feed_mm_min) and self.default_feed_mm_min > 0.0):
-            raise MotionConfigError(f'default feed must be > 0 mm/min, got '
-                                    f'{self.default_feed_mm_min}')
+        low_feed = self.min_feed_mm_min
+        if not (math.isfinite(low_feed) and 0.0 < low_feed <= MAX_FEED_MM_MIN):
+            raise MotionConfigError(f'min_feed_rate_mm_min is {low_feed}; allowed: '
+                                    f'0 < feed <= {MAX_FEED_MM_MIN:g} mm/min')
+        if not (math.isfinite(self.default_feed_mm_min)
+                and low_feed <= self.default_feed_mm_min <= MAX_FEED_MM_MIN):
+            raise MotionConfigError(f'feed_rate_mm_min is {self.default_feed_mm_min}; allowed: '
+                                    f'min_feed_rate_mm_min ({low_feed:g}) to '
+                                    f'{MAX_FEED_MM_MIN:g} mm/min')
         for axis, rate in zip(AXES, self.max_rate_mm_min, strict=True):
-            if not (math.isfinite(rate) and rate > 0.0):
-                raise MotionConfigError(f'max rate for {axis} must be > 0 mm/min, got {rate}')
+            if not (math.isfinite(rate) and low_feed <= rate <= MAX_FEED_MM_MIN):
+                raise MotionConfigError(f'max_rate_mm_min: the rate for {axis} is {rate}; '
+                                        f'allowed: min_feed_rate_mm_min ({low_feed:g}) to '
+                                        f'{MAX_FEED_MM_MIN:g} mm/min')
+        for name, corner in (('workspace_min_m', self.limits.minimum_m),
+                             ('workspace_max_m', self.limits.maximum_m)):
+            machine = self.transform.to_machine(corner)
+            if not all(math.isfinite(value) and abs(value) <= MAX_MACHINE_COORDINATE_MM
+                       for value in machine):
+                raise MotionConfigError(
+                    f'{name}={list(corner)} m maps to machine {list(machine)} mm with '
+                    'machine_offset_mm and axis_scale_mm_per_m; allowed: every machine '
+                    f'coordinate within +-{MAX_MACHINE_COORDINATE_MM:g} mm')
 
     def machine_limits_mm(self) -> tuple[Vector3, Vector3]:
         """Return the workspace box in machine coordinates, (low, high) per axis [mm]."""
@@ -252,6 +282,23 @@ def clamp_feed(feed_mm_min: float, start_mm: Vector3 | None, end_mm: Vector3,
     return max(math.floor(min(caps) * 10.0) / 10.0, 0.1)
 
 
+def check_feed(feed_mm_min: float, config: MotionConfig) -> float:
+    """Return the feed a request gets: its own, or the default when it asks for 0 [mm/min].
+
+    Raises:
+        TargetRejectedError: For a feed that is not a finite number, negative, or below
+            `config.min_feed_mm_min` (a feed so slow a move would run for hours).
+    """
+    if feed_mm_min == 0.0:
+        return config.default_feed_mm_min
+    if not math.isfinite(feed_mm_min) or feed_mm_min < config.min_feed_mm_min:
+        raise TargetRejectedError(
+            f'feed {feed_mm_min:g} mm/min refused: allowed are finite feeds from '
+            f'min_feed_rate_mm_min ({config.min_feed_mm_min:g} mm/min) up, or 0 for the '
+            'default feed')
+    return feed_mm_min
+
+
 def _quantize_inside(value_mm: float, low_mm: float, high_mm: float) -> float:
     """Round to the sent resolution, pulling the result back inside [low, high] [mm]."""
     scale: int = 10 ** COORDINATE_DECIMALS
@@ -280,21 +327,21 @@ def plan_move(target_m: Vector3, current_m: Vector3 | None, feed_mm_min: float,
     Args:
         target_m: Target in world [m], already validated by check_target.
         current_m: Current tool position in world [m], or None when unknown.
-        feed_mm_min: Requested feed [mm/min]; <= 0 uses the default feed.
+        feed_mm_min: Requested feed [mm/min]; 0 uses the default feed.
         config: Motion configuration.
 
     Returns:
         The move plan.
 
     Raises:
-        TargetRejectedError: When the goal (target + approach offset) is outside the workspace.
+        TargetRejectedError: When the goal (target + approach offset) is outside the
+            workspace, or the feed is refused (see check_feed).
     """
     goal = (target_m[0], target_m[1], target_m[2] + config.approach_offset_m)
     reason = config.limits.violation(target_m) or config.limits.violation(goal)
     if reason:
         raise TargetRejectedError(f'target outside workspace: {reason}')
-    if not math.isfinite(feed_mm_min) or feed_mm_min <= 0.0:
-        feed_mm_min = config.default_feed_mm_min
+    feed_mm_min = check_feed(feed_mm_min, config)
     low, high = config.machine_limits_mm()
 
     def machine(point_m: Vector3) -> Vector3:

@@ -217,7 +217,9 @@ class GrblController:
             self.output.append(ALARM_LOCK_MESSAGE)
 
     def _soft_reset(self) -> None:
-        if self._moving():
+        if self.state == 'Home':
+            self._raise_alarm(6)  # homing fail: reset during the homing cycle
+        elif self._moving():
             self._raise_alarm(3)
         self._clear_buffers()
         self._reset_modes()

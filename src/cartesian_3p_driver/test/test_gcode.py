@@ -10,6 +10,7 @@ from cartesian_3p_driver.gcode import (
     MotionConfigError,
     TargetRejectedError,
     WorkspaceLimits,
+    check_feed,
     check_target,
     clamp_feed,
     format_number,
@@ -156,3 +157,46 @@ def test_no_generated_line_ever_leaves_the_limits_or_exceeds_a_rate(
             world = (value - offset[i]) / scales[i]
             assert limits.minimum_m[i] - 1e-6 <= world <= limits.maximum_m[i] + 1e-6, line
             position[i] = value
+
+
+@pytest.mark.parametrize(('kwargs', 'message'), [
+    ({'scale_mm_per_m': (1e306, 1000.0, 1000.0)}, 'axis_scale_mm_per_m: the scale for X'),
+    ({'scale_mm_per_m': (1000.0, 0.5, 1000.0)}, 'axis_scale_mm_per_m: the scale for Y'),
+    ({'scale_mm_per_m': (1000.0, 1000.0, math.nan)}, 'axis_scale_mm_per_m: the scale for Z'),
+    ({'offset_mm': (1e308, 0.0, 0.0)}, 'machine_offset_mm: the offset for X is 1e+308'),
+    ({'offset_mm': (0.0, -math.inf, 0.0)}, 'machine_offset_mm: the offset for Y'),
+])
+def test_absurd_geometry_is_a_config_error_naming_the_parameter(kwargs, message):
+    with pytest.raises(MotionConfigError, match=re.escape(message)):
+        MachineTransform(**kwargs)
+
+
+def test_a_workspace_mapping_to_over_long_lines_is_a_config_error():
+    transform = MachineTransform(scale_mm_per_m=(100_000.0, 1000.0, 1000.0))
+    with pytest.raises(MotionConfigError, match='workspace_max_m=.*within \\+-100000 mm'):
+        MotionConfig(transform=transform, limits=WorkspaceLimits((0.0, 0.0, 0.0),
+                                                                (2.0, 0.3, 0.2)))
+
+
+def test_workspace_min_must_be_below_max():
+    with pytest.raises(MotionConfigError, match='min < max'):
+        WorkspaceLimits((0.0, 0.0, 0.2), (0.4, 0.3, 0.2))
+
+
+@pytest.mark.parametrize(('kwargs', 'message'), [
+    ({'min_feed_mm_min': 0.0}, 'min_feed_rate_mm_min'),
+    ({'default_feed_mm_min': 5.0}, 'feed_rate_mm_min is 5.0'),
+    ({'max_rate_mm_min': (3000.0, 1e30, 1000.0)}, 'max_rate_mm_min: the rate for Y'),
+])
+def test_feeds_and_rates_outside_their_range_are_config_errors(kwargs, message):
+    with pytest.raises(MotionConfigError, match=re.escape(message)):
+        MotionConfig(**kwargs)
+
+
+def test_check_feed_keeps_zero_for_the_default_and_refuses_slow_feeds():
+    config = MotionConfig(min_feed_mm_min=10.0, default_feed_mm_min=1500.0)
+    assert check_feed(0.0, config) == 1500.0
+    assert check_feed(10.0, config) == 10.0
+    for feed in (9.99, 1e-12, -1.0, math.nan, math.inf):
+        with pytest.raises(TargetRejectedError, match='min_feed_rate_mm_min'):
+            check_feed(feed, config)

@@ -197,3 +197,16 @@ def test_wpos_reports_carry_wco_intermittently():
     assert first.work_position_mm == (-10.0, 0.0, 0.0)
     assert first.resolve_machine_position(None) == (0.0, 0.0, 0.0)
     assert status(controller, 0.1).work_offset_mm is None
+
+
+def test_a_reset_during_homing_raises_alarm_6_and_stays_in_alarm():
+    controller = GrblController(ControllerSettings(homing_enabled=True))
+    controller.position = [50.0, 50.0, 50.0]
+    controller.receive(b'$H\n', 0.0)
+    controller.advance(0.1)
+    assert controller.state == 'Home'
+    controller.output.clear()
+    controller.receive(b'\x18', 0.2)
+    assert list(controller.output)[:1] == ['ALARM:6']
+    assert 'ok' not in controller.output                 # $H is never answered
+    assert controller.state == 'Alarm'
