@@ -181,14 +181,16 @@ def unaccounted(probes: dict) -> list[str]:
         'sync in = out + dropped': (count(sync, 'pairs in'),
                                     count(sync, 'pairs out') + count(sync, 'pairs dropped')),
         'correlation received + lost = sync out':
-            (received + count(correlation, 'stereo/pair lost (sequence gaps)'),
+            (received + count(correlation, 'stereo/pair lost (sequence gaps)')
+             + count(correlation, 'stereo/pair sent before the first received'),
              count(sync, 'pairs out')),
         'correlation processed + dropped + waiting = received':
             (matched + count(correlation, 'pairs waiting') + sum(
                 count(correlation, f'dropped {reason}') for reason in CORRELATION_DROPS),
              received),
         'fuzzy received + lost = correlation processed':
-            (arrived + count(fuzzy, 'stereo/matches lost (sequence gaps)'), matched),
+            (arrived + count(fuzzy, 'stereo/matches lost (sequence gaps)')
+             + count(fuzzy, 'stereo/matches sent before the first received'), matched),
         'fuzzy decisions = received':
             (count(fuzzy, 'decisions made') + count(fuzzy, 'decisions refused'), arrived)}
     return [f'{name}: {a} != {b}' for name, (a, b) in identities.items() if a != b]
