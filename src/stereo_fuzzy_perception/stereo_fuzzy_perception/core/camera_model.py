@@ -9,6 +9,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+MAX_IMAGE_SIDE = 32767
+"""Largest image side [px]: OpenCV's fixed-point remap maps hold coordinates as int16."""
+ROTATION_TOLERANCE = 0.01
+"""Largest |(R R^T - I)_ij| accepted for a rectification rotation (files round R)."""
+DISTORTION_LENGTHS: dict[str, tuple[int, ...]] = {
+    'plumb_bob': (0, 4, 5),
+    'rational_polynomial': (0, 8),
+    'equidistant': (4,),
+}
+"""Distortion models this package rectifies, with the D lengths each takes (0: no distortion)."""
+
 
 class CalibrationError(ValueError):
     """A camera calibration that cannot be used, with what is wrong in the message."""
@@ -28,6 +39,9 @@ class CameraCalibration:
             right camera of a stereo pair.
         distortion_model: `plumb_bob`, `rational_polynomial` or `equidistant`.
         frame_id: The camera's optical frame.
+        binning_x: CameraInfo binning_x (0 and 1: none; more is refused by problem()).
+        binning_y: CameraInfo binning_y.
+        roi: CameraInfo roi (x, y, width, height); all zero or the full image, else refused.
     """
 
     width: int
@@ -38,19 +52,66 @@ class CameraCalibration:
     P: np.ndarray = field(default_factory=lambda: np.zeros((3, 4)))
     distortion_model: str = 'plumb_bob'
     frame_id: str = ''
+    binning_x: int = 0
+    binning_y: int = 0
+    roi: tuple[int, int, int, int] = (0, 0, 0, 0)
 
     def problem(self) -> str | None:
-        """Return why this calibration is unusable, or None if it is usable."""
+        """Return why this calibration is unusable, or None if it is usable.
+
+        Checks, in order: the image size (positive, at most MAX_IMAGE_SIDE), the shapes of K,
+        R and P, every number finite, the distortion model known and D of its length, K and P
+        with positive focal lengths, the principal points inside the image and a last row
+        (0, 0, 1), R a rotation, and binning / ROI unset (neither is applied downstream, so a
+        binned or cropped calibration would give wrong points silently).
+        """
         if self.width <= 0 or self.height <= 0:
             return f'image size {self.width}x{self.height} is not positive'
-        if np.asarray(self.K).shape != (3, 3) or not np.any(self.K):
+        if self.width > MAX_IMAGE_SIDE or self.height > MAX_IMAGE_SIDE:
+            return (f'image size {self.width}x{self.height}: a side above {MAX_IMAGE_SIDE} px '
+                    'cannot be rectified (OpenCV remap)')
+        for name, matrix, shape in (('K', self.K, (3, 3)), ('R', self.R, (3, 3)),
+                                    ('P', self.P, (3, 4))):
+            if np.shape(matrix) != shape:
+                return f'{name} has shape {np.shape(matrix)}, expected {shape}'
+        K, R, P = (np.asarray(m, dtype=float) for m in (self.K, self.R, self.P))
+        D = np.asarray(self.D, dtype=float)
+        if not np.any(K):
             return 'K is all zero: the camera is not calibrated'
-        if not np.all(np.isfinite(self.K)) or not np.all(np.isfinite(self.P)):
-            return 'K or P holds NaN or infinity'
-        if np.asarray(self.P).shape != (3, 4) or not np.any(self.P):
+        if not np.any(P):
             return 'P is all zero: no rectified projection'
-        if self.K[0, 0] <= 0 or self.K[1, 1] <= 0:
-            return f'focal lengths fx={self.K[0, 0]}, fy={self.K[1, 1]} must be positive'
+        for name, matrix in (('K', K), ('D', D), ('R', R), ('P', P)):
+            if not np.all(np.isfinite(matrix)):
+                return f'{name} holds NaN or infinity'
+        lengths = DISTORTION_LENGTHS.get(self.distortion_model)
+        if lengths is None:
+            return (f'distortion model {self.distortion_model!r} is not one of '
+                    f'{", ".join(DISTORTION_LENGTHS)}')
+        if D.ndim != 1 or D.size not in lengths:
+            return (f'D has {D.size} coefficients; {self.distortion_model} takes '
+                    + ' or '.join(str(n) for n in lengths))
+        if K[0, 0] <= 0 or K[1, 1] <= 0:
+            return f'focal lengths fx={K[0, 0]}, fy={K[1, 1]} must be positive'
+        if P[0, 0] <= 0 or P[1, 1] <= 0:
+            return f'projection focal lengths P fx={P[0, 0]}, fy={P[1, 1]} must be positive'
+        for name, cx, cy in (('K', K[0, 2], K[1, 2]), ('P', P[0, 2], P[1, 2])):
+            if not (0.0 <= cx <= self.width and 0.0 <= cy <= self.height):
+                return (f'{name} principal point ({cx:g}, {cy:g}) lies outside the '
+                        f'{self.width}x{self.height} image')
+        if not np.allclose(K[2], (0.0, 0.0, 1.0)) or not np.allclose(P[2, :3], (0.0, 0.0, 1.0)):
+            return 'the last row of K and of P[:, :3] must be (0, 0, 1)'
+        # Tolerance for files written with 3 decimals; huge entries overflow: not a rotation.
+        with np.errstate(over='ignore', invalid='ignore'):
+            rotation = bool(np.allclose(R @ R.T, np.eye(3), atol=ROTATION_TOLERANCE)
+                            and np.linalg.det(R) > 0.0)
+        if not rotation:
+            return 'R is not a rotation (R R^T = I, det R = 1)'
+        if self.binning_x > 1 or self.binning_y > 1:
+            return (f'binning {self.binning_x}x{self.binning_y} is not supported: publish '
+                    'unbinned images, or a calibration of the binned size with binning 0')
+        if any(self.roi) and tuple(self.roi) != (0, 0, self.width, self.height):
+            return (f'ROI {tuple(self.roi)} (x, y, width, height) is not supported: publish '
+                    'full images, or a calibration of the cropped image with no ROI')
         return None
 
     def same_as(self, other: CameraCalibration) -> bool:

@@ -21,7 +21,11 @@ from stereo_msgs.msg import DisparityImage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches, StereoPair
-from stereo_fuzzy_perception.core.camera_model import CameraCalibration, StereoCalibration
+from stereo_fuzzy_perception.core.camera_model import (
+    MAX_IMAGE_SIDE,
+    CameraCalibration,
+    StereoCalibration,
+)
 from stereo_fuzzy_perception.core.image_encoding import (
     SUPPORTED_ENCODINGS,
     ImageEncodingError,
@@ -98,6 +102,39 @@ def check_image_layout(msg: Image) -> None:
             f'data holds {len(msg.data)} bytes, expected step*height = {msg.step * msg.height}')
 
 
+class ImageSizeError(ImageEncodingError):
+    """An image larger than the node accepts (max_image_pixels, or a side OpenCV cannot remap)."""
+
+
+def image_size_problem(width: int, height: int, max_pixels: int) -> str | None:
+    """Return why a width x height image is too large to process, or None.
+
+    Args:
+        width: Image width [px].
+        height: Image height [px].
+        max_pixels: Most pixels accepted per image (the node's max_image_pixels).
+    """
+    if width > MAX_IMAGE_SIDE or height > MAX_IMAGE_SIDE:
+        return (f'image is {width}x{height}: a side above {MAX_IMAGE_SIDE} px cannot be '
+                'rectified (OpenCV remap)')
+    if width * height > max_pixels:
+        return (f'image is {width}x{height} = {width * height} pixels, more than '
+                f'max_image_pixels {max_pixels}')
+    return None
+
+
+def check_pair_size(pair: StereoPair, max_pixels: int) -> None:
+    """Refuse a pair with an image above the size limits before anything is decoded.
+
+    Raises:
+        ImageSizeError: Naming the side, its size and the limit.
+    """
+    for side, image in (('left', pair.left_image), ('right', pair.right_image)):
+        problem = image_size_problem(int(image.width), int(image.height), max_pixels)
+        if problem:
+            raise ImageSizeError(f'{side} {problem}')
+
+
 def stamp_to_ns(stamp: Time) -> int:
     """Convert a builtin_interfaces/Time to integer nanoseconds [ns]."""
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
@@ -117,12 +154,16 @@ def camera_info_to_calibration(msg: CameraInfo) -> CameraCalibration:
         P=np.array(msg.p, dtype=float).reshape(3, 4),
         distortion_model=msg.distortion_model or 'plumb_bob',
         frame_id=msg.header.frame_id,
+        binning_x=int(msg.binning_x),
+        binning_y=int(msg.binning_y),
+        roi=(int(msg.roi.x_offset), int(msg.roi.y_offset), int(msg.roi.width),
+             int(msg.roi.height)),
     )
 
 
 def calibration_to_camera_info(calibration: CameraCalibration,
                                header: Header | None = None) -> CameraInfo:
-    """Write a CameraCalibration into a CameraInfo (binning 0, full-image ROI)."""
+    """Write a CameraCalibration into a CameraInfo (binning and ROI as it holds them)."""
     msg = CameraInfo()
     if header is not None:
         msg.header = header
@@ -134,6 +175,9 @@ def calibration_to_camera_info(calibration: CameraCalibration,
     msg.k = [float(value) for value in np.asarray(calibration.K).ravel()]
     msg.r = [float(value) for value in np.asarray(calibration.R).ravel()]
     msg.p = [float(value) for value in np.asarray(calibration.P).ravel()]
+    msg.binning_x, msg.binning_y = int(calibration.binning_x), int(calibration.binning_y)
+    x, y, width, height = (int(value) for value in calibration.roi)
+    msg.roi = RegionOfInterest(x_offset=x, y_offset=y, width=width, height=height)
     return msg
 
 
@@ -206,32 +250,88 @@ _POINT_FIELD_TYPES = {
 }
 
 
+class CloudLayoutError(ValueError):
+    """A PointCloud2 whose fields, steps or buffer do not describe a consistent layout."""
+
+
+def check_cloud_layout(cloud: PointCloud2) -> None:
+    """Check that a PointCloud2's layout is consistent before any byte of it is read.
+
+    Every field has a unique, non-empty name, a known datatype and a count of at least 1, lies
+    inside point_step and overlaps no other field; is_bigendian is 0 or 1; row_step holds a
+    row of width points, and data holds height rows. The fields MATCH_FIELDS must be present
+    as single values.
+
+    Raises:
+        CloudLayoutError: Naming the first inconsistency found.
+    """
+    names = [field.name for field in cloud.fields]
+    duplicates = sorted({name for name in names if names.count(name) > 1})
+    if duplicates:
+        raise CloudLayoutError(f'point cloud field(s) {", ".join(duplicates)} declared twice')
+    missing = [name for name in MATCH_FIELDS if name not in names]
+    if missing:
+        raise CloudLayoutError(f'point cloud lacks field(s) {", ".join(missing)}; has '
+                               f'{", ".join(names) or "none"}')
+    if cloud.is_bigendian not in (0, 1, False, True):
+        raise CloudLayoutError(f'is_bigendian {cloud.is_bigendian!r} is not a boolean')
+    point_step = int(cloud.point_step)
+    spans = []
+    for field in cloud.fields:
+        if not field.name:
+            raise CloudLayoutError('a point cloud field has an empty name')
+        if field.datatype not in _POINT_FIELD_TYPES:
+            raise CloudLayoutError(f'field {field.name!r} has unknown datatype '
+                                   f'{field.datatype} (1..8 are defined)')
+        if field.count < 1 or (field.name in MATCH_FIELDS and field.count != 1):
+            raise CloudLayoutError(f'field {field.name!r} has count {field.count}; expected '
+                                   f'{1 if field.name in MATCH_FIELDS else "at least 1"}')
+        size = np.dtype(_POINT_FIELD_TYPES[field.datatype]).itemsize * int(field.count)
+        end = int(field.offset) + size
+        if end > point_step:
+            raise CloudLayoutError(f'field {field.name!r} (bytes {field.offset}..{end - 1}) does '
+                                   f'not fit point_step {point_step}')
+        spans.append((int(field.offset), end, field.name))
+    spans.sort()
+    for (_, first_end, first), (second_start, _, second) in zip(spans, spans[1:], strict=False):
+        if second_start < first_end:
+            raise CloudLayoutError(f'fields {first!r} and {second!r} overlap')
+    width, height = int(cloud.width), int(cloud.height)
+    if width * height == 0:
+        return
+    if int(cloud.row_step) < width * point_step:
+        raise CloudLayoutError(f'row_step {cloud.row_step} is shorter than a row of {width} '
+                               f'points of {point_step} bytes')
+    if len(cloud.data) < height * int(cloud.row_step):
+        raise CloudLayoutError(f'point cloud data holds {len(cloud.data)} bytes, expected '
+                               f'height*row_step = {height * int(cloud.row_step)}')
+
+
 def cloud_to_matched_points(cloud: PointCloud2) -> MatchedPoints:
     """Unpack a PointCloud2 with fields MATCH_FIELDS (any order, offsets or numeric types).
 
+    The layout is checked first (check_cloud_layout); rows may be padded (row_step).
+
     Raises:
-        ValueError: When a field is missing or the buffer is shorter than the header says.
+        CloudLayoutError: When the layout is inconsistent (see check_cloud_layout).
     """
-    fields = {field.name: field for field in cloud.fields}
-    missing = [name for name in MATCH_FIELDS if name not in fields]
-    if missing:
-        raise ValueError(f'point cloud lacks field(s) {", ".join(missing)}; has '
-                         f'{", ".join(fields) or "none"}')
-    count = int(cloud.width) * int(cloud.height)
-    if count == 0:
+    check_cloud_layout(cloud)
+    width, height = int(cloud.width), int(cloud.height)
+    if width * height == 0:
         return MatchedPoints.empty()
+    fields = {field.name: field for field in cloud.fields}
     byte_order = '>' if cloud.is_bigendian else '<'
     dtype = np.dtype({
         'names': list(MATCH_FIELDS),
         'formats': [byte_order + _POINT_FIELD_TYPES[fields[name].datatype]
                     for name in MATCH_FIELDS],
-        'offsets': [fields[name].offset for name in MATCH_FIELDS],
+        'offsets': [int(fields[name].offset) for name in MATCH_FIELDS],
         'itemsize': int(cloud.point_step),
     })
-    if len(cloud.data) < count * cloud.point_step:
-        raise ValueError(f'point cloud data holds {len(cloud.data)} bytes, expected '
-                         f'{count * cloud.point_step} for {count} points')
-    records = np.frombuffer(bytes(cloud.data), dtype=dtype, count=count)
+    row_step = int(cloud.row_step)
+    buffer = np.frombuffer(bytes(cloud.data), dtype=np.uint8, count=height * row_step)
+    rows = buffer.reshape(height, row_step)[:, :width * dtype.itemsize]
+    records = np.ascontiguousarray(rows).view(dtype).reshape(-1)
     column = {name: records[name].astype(np.float64) for name in MATCH_FIELDS}
     return MatchedPoints(
         xyz=np.stack([column['x'], column['y'], column['z']], axis=1),

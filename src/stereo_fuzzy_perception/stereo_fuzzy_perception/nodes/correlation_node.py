@@ -14,6 +14,7 @@ import traceback
 from collections import Counter, deque
 from typing import Any
 
+import cv2
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -29,8 +30,11 @@ from stereo_fuzzy_perception.core.matching.rectification import RectificationErr
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
 from stereo_fuzzy_perception.core.matching.window_matcher import MatcherInputError, warm_up
 from stereo_fuzzy_perception.core.rig_pose import RigPoseError
+from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
 from stereo_fuzzy_perception.nodes import qos
 from stereo_fuzzy_perception.nodes.conversions import (
+    ImageSizeError,
+    check_pair_size,
     disparity_image_message,
     matched_points_to_cloud,
     stereo_matches_message,
@@ -38,8 +42,8 @@ from stereo_fuzzy_perception.nodes.conversions import (
 )
 from stereo_fuzzy_perception.nodes.correlation_parameters import CorrelationSettings
 
-DROP_REASONS = ('superseded', 'calibration', 'size_mismatch', 'encoding', 'matcher_input',
-                'internal')
+DROP_REASONS = ('superseded', 'image_too_large', 'calibration', 'size_mismatch', 'encoding',
+                'matcher_input', 'opencv', 'internal')
 
 
 class CorrelationNode(Node):
@@ -70,6 +74,7 @@ class CorrelationNode(Node):
         self._stopping = False
         self.received = 0
         self.processed = 0
+        self.pair_sequence = SequenceGaps()
         self.dropped: Counter[str] = Counter({reason: 0 for reason in DROP_REASONS})
         self.last_error = ''
         self.last_timings_ms: dict[str, float] = {}
@@ -95,11 +100,14 @@ class CorrelationNode(Node):
         self._derived_for = None
         self.pipeline.config = settings.matcher_config()
         self.pipeline.point_stride = settings.point_stride
+        with self._condition:
+            self._condition.notify_all()  # the worker re-reads max_rate_hz
         self.get_logger().info(f'matcher settings now {self.pipeline.config}')
 
     def _on_pair(self, pair: StereoPair) -> None:
         with self._condition:
             self.received += 1
+            self.pair_sequence.observe(int(pair.sequence))
             if len(self._pending) >= self.settings.input_queue_depth:
                 self._pending.popleft()
                 self.dropped['superseded'] += 1
@@ -120,25 +128,31 @@ class CorrelationNode(Node):
         self.create_subscription(StereoPair, 'stereo/pair', self._on_pair, self._input_qos)
         self.get_logger().info(f'matching kernel ready in {seconds:.2f} s; subscribed to '
                                'stereo/pair')
-        next_allowed = 0.0
+        last_start = -float('inf')
         while True:
             with self._condition:
                 while not self._pending and not self._stopping:
                     self._condition.wait()
-                rate = self.settings.max_rate_hz
-                while rate > 0.0 and not self._stopping and time.monotonic() < next_allowed:
-                    self._condition.wait(next_allowed - time.monotonic())
+                # max_rate_hz is re-read on every wake-up (a change notifies), so lowering or
+                # clearing it takes effect at once, not at the deadline of the old rate.
+                while not self._stopping:
+                    rate = self.settings.max_rate_hz
+                    remaining = (last_start + 1.0 / rate - time.monotonic()) if rate > 0.0 \
+                        else 0.0
+                    if remaining <= 0.0:
+                        break
+                    self._condition.wait(remaining)
                 if self._stopping:
                     return
                 pair = self._pending.popleft() if self._pending else None
             if pair is None:
                 continue
-            if rate > 0.0:
-                next_allowed = time.monotonic() + 1.0 / rate
+            last_start = time.monotonic()
             self._process(pair)
 
     def _process(self, pair: StereoPair) -> None:
         try:
+            check_pair_size(pair, self.settings.max_image_pixels)
             left, right, calibration = stereo_pair_to_domain(pair)
             calibration.require_valid()
             self._derive_disparities(calibration)
@@ -151,6 +165,9 @@ class CorrelationNode(Node):
             result = self.pipeline.process(
                 left, right, calibration,
                 full_disparity=self.disparity_publisher.get_subscription_count() > 0)
+        except ImageSizeError as error:
+            self._drop('image_too_large', str(error))
+            return
         except ImageEncodingError as error:
             self._drop('encoding', str(error))
             return
@@ -163,23 +180,30 @@ class CorrelationNode(Node):
         except MatcherInputError as error:
             self._drop('matcher_input', str(error))
             return
+        except cv2.error as error:  # odd shapes or values OpenCV refuses (remap, cvtColor)
+            self._drop('opencv', ' '.join(str(error).split()))
+            return
         except Exception as error:  # keep matching whatever one pair does
             self._drop('internal', f'{error!r}\n{traceback.format_exc()}')
             return
         start = time.perf_counter()
         header = pair.header
         try:
-            self.matches_publisher.publish(stereo_matches_message(
-                header, result.rectified, result.points, result.disparity_map.config))
+            matches = stereo_matches_message(
+                header, result.rectified, result.points, result.disparity_map.config)
+            matches.sequence = self.processed + 1
+            matches.pair_sequence = pair.sequence
+            self.matches_publisher.publish(matches)
             if self.points_publisher.get_subscription_count() > 0:
                 self.points_publisher.publish(matched_points_to_cloud(result.points, header))
             if self.disparity_publisher.get_subscription_count() > 0:
                 self.disparity_publisher.publish(
                     disparity_image_message(result.disparity_map, result.rectified, header))
-        except Exception:
+        except Exception as error:
             if not self.context.ok():
                 return  # shutting down: nothing left to publish to
-            raise
+            self._drop('internal', f'{error!r}\n{traceback.format_exc()}')
+            return
         timings = dict(result.timings_ms, publish=1e3 * (time.perf_counter() - start))
         with self._condition:
             self.processed += 1
@@ -225,6 +249,8 @@ class CorrelationNode(Node):
             values = {
                 'pairs received': self.received,
                 'pairs processed': self.processed,
+                'pairs waiting': len(self._pending),
+                **self.pair_sequence.report('stereo/pair'),
                 **{f'dropped {reason}': count for reason, count in self.dropped.items()},
                 'last valid points': self.last_points,
                 **{f'last {name} time [ms]': round(ms, 2)

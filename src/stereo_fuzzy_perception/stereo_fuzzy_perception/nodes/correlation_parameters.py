@@ -92,6 +92,9 @@ class CorrelationSettings:
     input_queue_depth: int = parameter(
         1, 'Pairs waiting while one is matched; when full the oldest is dropped. 1 = the newest '
         'pair always wins (bounded latency); more tolerates bursts in replays', 1, 30)
+    max_image_pixels: int = parameter(
+        4096 * 3072, 'Largest image accepted [px, width x height]; larger pairs are dropped as '
+        'image_too_large before they are decoded', 1, 32767 * 32767)
     input_reliability: str = parameter(
         'reliable', 'Reliability of the stereo/pair subscription',
         choices=('reliable', 'best_effort'), read_only=True)

@@ -42,9 +42,11 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     TOO_FEW_POINTS,
 )
 from stereo_fuzzy_perception.core.best_point.point_selectors import (
+    OUTPUT_STATUSES,
     BestPointChooser,
     BestPointDecision,
     SelectorError,
+    load_selector_files,
 )
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.rig_pose import (
@@ -54,6 +56,7 @@ from stereo_fuzzy_perception.core.rig_pose import (
     RigPoseError,
     Transform,
 )
+from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
 from stereo_fuzzy_perception.nodes import qos
 from stereo_fuzzy_perception.nodes.conversions import (
     best_point_to_point_stamped,
@@ -74,8 +77,9 @@ DIAGNOSTICS_TOPIC = '/diagnostics'
 TF_STATIC_TOPIC = '/tf_static'
 MALFORMED_INPUT = 'malformed_input'
 RIG_MISMATCH = 'rig_mismatch'
+INTERNAL_ERROR = 'internal_error'
 REFUSAL_REASONS = (NO_POINTS, NO_OBJECT, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED,
-                   MALFORMED_INPUT, RIG_MISMATCH)
+                   MALFORMED_INPUT, RIG_MISMATCH, *OUTPUT_STATUSES, INTERNAL_ERROR)
 ERROR_THROTTLE_S = 5.0
 HINT_THROTTLE_S = 60.0
 
@@ -111,12 +115,26 @@ def build_pose_source(settings: FuzzyBestPointSettings) -> CameraPoseSource:
 
 
 def chooser_problem(settings: FuzzyBestPointSettings) -> str | None:
-    """Return why the settings cannot work (e.g. a bad rule base or pose file), or None."""
+    """Return why the settings cannot work (a bad rule base or pose file), or None.
+
+    Both selector files are loaded and checked whichever selector is active, so a bad
+    network_file is refused when it is set, not when neural_network is selected later. Never
+    raises.
+    """
     try:
+        for name, rule_base_file, weights_file in (
+                ('rule_base_file', settings.rule_base_file, ''),
+                ('network_file', '', settings.network_file)):
+            try:
+                load_selector_files(rule_base_file, weights_file)
+            except SelectorError as error:
+                return f'{name}={rule_base_file or weights_file!r}: {error}'
         build_chooser(settings)
         build_pose_source(settings)
     except (SelectorError, RigPoseError) as error:
         return str(error)
+    except Exception as error:  # a loader bug must refuse the change, not kill the node
+        return f'cannot check the settings ({type(error).__name__}: {error})'
     return None
 
 
@@ -140,6 +158,7 @@ class FuzzyBestPointNode(Node):
         self.decisions: Counter[str] = Counter({STATUS_OK: 0, **dict.fromkeys(
             REFUSAL_REASONS, 0)})
         self._last_status = 'waiting for input'
+        self.matches_sequence = SequenceGaps()
         self.best_point_publisher = self.create_publisher(
             PointStamped, BEST_POINT_TOPIC, qos.RESULTS)
         self.decision_publisher = self.create_publisher(
@@ -170,6 +189,7 @@ class FuzzyBestPointNode(Node):
         header = Header(stamp=msg.header.stamp, frame_id=self.settings.world.world_frame)
         with self._lock:
             chooser = self._chooser
+            self.matches_sequence.observe(int(msg.sequence))
         try:
             points = cloud_to_matched_points(msg.points)
             left = camera_info_to_calibration(msg.left_info)
@@ -195,7 +215,13 @@ class FuzzyBestPointNode(Node):
             self._publish(BestPointDecision(chooser.selector, status=RIG_MISMATCH,
                                             reason=str(error)), header, msg.header.frame_id)
             return
-        decision = chooser.decide(points, left, right)
+        try:
+            decision = chooser.decide(points, left, right)
+        except Exception as error:  # no input may stop the node; say what happened instead
+            self.get_logger().error(f'choosing failed: {error!r}',
+                                    throttle_duration_sec=ERROR_THROTTLE_S)
+            decision = BestPointDecision(chooser.selector, status=INTERNAL_ERROR,
+                                         reason=f'{type(error).__name__}: {error}')
         if (decision.status == NO_POINTS and decision.points_in > 0
                 and not self._pose_source.transforms and self._pose_origin == RIG_PARAMETERS):
             self.get_logger().warning(
@@ -264,6 +290,8 @@ class FuzzyBestPointNode(Node):
                                             ('decisions made', made),
                                             ('decisions refused', sum(refused.values()))]
         values += [(f'refused {reason}', count) for reason, count in refused.items()]
+        with self._lock:
+            values += list(self.matches_sequence.report('stereo/matches').items())
         status.values = [KeyValue(key=key, value=str(value)) for key, value in values]
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()

@@ -24,6 +24,7 @@ from typing import Any
 import cv2
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -45,6 +46,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     calibration_to_camera_info,
     camera_info_to_calibration,
     check_image_layout,
+    image_size_problem,
     stamp_to_ns,
 )
 from stereo_fuzzy_perception.nodes.stereo_sync_parameters import StereoSyncSettings
@@ -60,12 +62,14 @@ DIAGNOSTICS_TOPIC = '/diagnostics'
 DROP_REASONS = (
     'unsupported_encoding',   # encoding not in image_encoding.SUPPORTED_ENCODINGS
     'bad_image',              # empty image, step shorter than a row, data shorter than step*h
-    'uncalibrated',           # camera_info unusable: K all zero, P all zero, size 0, NaN
+    'image_too_large',        # more than max_image_pixels, or a side above 32767 px
+    'uncalibrated',           # camera_info unusable (CameraCalibration.problem(): any check)
     'size_mismatch',          # left vs right image, or an image vs its camera_info
     'right_tx_not_negative',  # right P[0,3] >= 0: not the right camera of a stereo pair
     'missing_camera_info',    # an image dropped unpaired while no camera_info was queued
 )
 ERROR_THROTTLE_S = 5.0
+DEFAULT_MAX_IMAGE_PIXELS = StereoSyncSettings().max_image_pixels
 
 
 class StereoSyncSetupError(ValueError):
@@ -81,7 +85,8 @@ class PairProblem:
 
 
 def pair_problem(left_image: Image, left_info: CameraInfo, right_image: Image,
-                 right_info: CameraInfo) -> PairProblem | None:
+                 right_info: CameraInfo,
+                 max_pixels: int = DEFAULT_MAX_IMAGE_PIXELS) -> PairProblem | None:
     """Return the first reason the set cannot be used (checks in DROP_REASONS order), or None."""
     sides = (('left', left_image, left_info), ('right', right_image, right_info))
     for side, image, _ in sides:
@@ -91,6 +96,11 @@ def pair_problem(left_image: Image, left_info: CameraInfo, right_image: Image,
             reason = ('unsupported_encoding' if image.encoding not in SUPPORTED_ENCODINGS
                       else 'bad_image')
             return PairProblem(reason, f'{side} image: {error}')
+    for side, image, info in sides:
+        for what, size in (('image', image), ('camera_info', info)):
+            problem = image_size_problem(int(size.width), int(size.height), max_pixels)
+            if problem:
+                return PairProblem('image_too_large', f'{side} {what}: {problem}')
     calibrations = {}
     for side, _, info in sides:
         calibration = camera_info_to_calibration(info)
@@ -120,8 +130,10 @@ class PairStatistics:
         self._lock = threading.Lock()
         self.pairs_in = 0
         self.pairs_out = 0
+        self.sequence = 0
         self.dropped: Counter[str] = Counter({reason: 0 for reason in DROP_REASONS})
         self.unpaired: Counter[str] = Counter()
+        self.lost: Counter[str] = Counter()
         self.received: Counter[str] = Counter()
         self._drop_times: deque[float] = deque(maxlen=1000)
         self._last_report = (time.monotonic(), 0, 0)
@@ -140,6 +152,17 @@ class PairStatistics:
         """Count one StereoPair published."""
         with self._lock:
             self.pairs_out += 1
+
+    def next_sequence(self) -> int:
+        """Return the sequence number of the next StereoPair: 1, 2, 3, ..."""
+        with self._lock:
+            self.sequence += 1
+            return self.sequence
+
+    def count_lost(self, topic: str, count: int) -> None:
+        """Count `count` messages DDS reported lost on an input topic before delivery."""
+        with self._lock:
+            self.lost[topic] += count
 
     def count_drop(self, reason: str) -> None:
         """Count one pair dropped for `reason` (one of DROP_REASONS)."""
@@ -164,6 +187,7 @@ class PairStatistics:
                 'pairs_out': self.pairs_out,
                 'dropped': dict(self.dropped),
                 'unpaired': dict(self.unpaired),
+                'lost': dict(self.lost),
                 'received': dict(self.received),
                 'input_rate_hz': (self.pairs_in - last_in) / elapsed,
                 'output_rate_hz': (self.pairs_out - last_out) / elapsed,
@@ -215,7 +239,9 @@ class StereoSyncNode(Node):
         for stream, topic in enumerate(INPUT_TOPICS):
             message_type = Image if stream in (LEFT_IMAGE, RIGHT_IMAGE) else CameraInfo
             self.create_subscription(
-                message_type, topic, partial(self._on_input, stream), input_qos)
+                message_type, topic, partial(self._on_input, stream), input_qos,
+                event_callbacks=SubscriptionEventCallbacks(
+                    message_lost=partial(self._on_message_lost, topic)))
         self.get_logger().info(
             f'pairing {", ".join(INPUT_TOPICS)} by stamp (slop {self.settings.slop_s} s, '
             f'queue {self.settings.queue_size}, {self.settings.input_reliability})')
@@ -228,6 +254,12 @@ class StereoSyncNode(Node):
         if result.matched is not None:
             left_image, left_info, right_image, right_info = result.matched.items
             self._publish_pair(left_image, left_info, right_image, right_info)
+
+    def _on_message_lost(self, topic: str, info: QoSMessageLostInfo) -> None:
+        self.statistics.count_lost(topic, int(info.total_count_change))
+        self.get_logger().warning(
+            f'{topic}: {info.total_count} message(s) lost before delivery (DDS sample lost)',
+            throttle_duration_sec=ERROR_THROTTLE_S)
 
     def _on_evicted(self, evicted: Evicted[Image | CameraInfo]) -> None:
         topic = INPUT_TOPICS[evicted.stream]
@@ -259,6 +291,9 @@ class StereoSyncNode(Node):
                 calibration = read_calibration_yaml(path)
             except CalibrationFileError as error:
                 raise CalibrationFileError(f'{name}: {error}') from None
+            problem = calibration.problem()
+            if problem:
+                raise CalibrationFileError(f'{name}: {path}: unusable calibration: {problem}')
             calibrations.append(replace(calibration, frame_id=frame_id))
         self._device_calibrations = tuple(calibrations)
         self._capture = DeviceCapture(settings.left_device, settings.right_device)
@@ -325,7 +360,8 @@ class StereoSyncNode(Node):
     def _publish_pair(self, left_image: Image, left_info: CameraInfo, right_image: Image,
                       right_info: CameraInfo) -> None:
         self.statistics.count_in()
-        problem = pair_problem(left_image, left_info, right_image, right_info)
+        problem = pair_problem(left_image, left_info, right_image, right_info,
+                               self.settings.max_image_pixels)
         if problem is not None:
             stamp_s = stamp_to_ns(left_image.header.stamp) * 1e-9
             self._drop(problem.reason, f'pair at stamp {stamp_s:.6f} s: {problem.detail}')
@@ -333,7 +369,8 @@ class StereoSyncNode(Node):
         pair = StereoPair(
             header=Header(stamp=left_image.header.stamp, frame_id=left_image.header.frame_id),
             left_image=left_image, right_image=right_image,
-            left_info=left_info, right_info=right_info)
+            left_info=left_info, right_info=right_info,
+            sequence=self.statistics.next_sequence())
         self.pair_publisher.publish(pair)
         self.statistics.count_out()
 
@@ -386,6 +423,8 @@ class StereoSyncNode(Node):
             values += [(f'received {topic}', report['received'].get(topic, 0))
                        for topic in INPUT_TOPICS]
             values += [(f'unpaired {topic}', report['unpaired'].get(topic, 0))
+                       for topic in INPUT_TOPICS]
+            values += [(f'lost before delivery {topic}', report['lost'].get(topic, 0))
                        for topic in INPUT_TOPICS]
         else:
             values.append(('capture', self._capture_state))

@@ -25,6 +25,9 @@ class StereoSyncSettings:
     input_reliability: str = parameter(
         'best_effort', 'Reliability of the four input subscriptions; best_effort also receives '
         'reliable publishers', choices=('best_effort', 'reliable'), read_only=True)
+    max_image_pixels: int = parameter(
+        4096 * 3072, 'Largest image accepted [px, width x height]; larger sets are dropped as '
+        'image_too_large before they are decoded', 1, 32767 * 32767)
     # --- devices source
     left_device: str = parameter(
         '', 'Left capture: device index (0), video file, or image pattern (left_%03d.png)',

@@ -8,15 +8,21 @@ One tanh hidden layer; trained by full-batch Adam on simulated scenes (scripts/t
 
 from __future__ import annotations
 
+import io
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from stereo_fuzzy_perception.core.best_point.correlation_area import CorrelationArea, FourAreas
+from stereo_fuzzy_perception.core.yaml_file import MAX_DATA_FILE_BYTES, read_file_bytes
 
 FEATURE_COUNT = 14
 LOG_RATIO_LIMIT = 3.0
+MAX_OUTPUT_SCALE = 1.0
+"""Largest output_scale [m per output unit] a weights file may hold (trained ones: 1e-3)."""
+WEIGHT_ARRAYS = ('input_mean', 'input_std', 'w1', 'b1', 'w2', 'b2', 'output_scale')
 
 
 class NeuralBaselineError(ValueError):
@@ -62,8 +68,10 @@ class NeuralBaseline:
 
     def predict(self, features: np.ndarray) -> np.ndarray:
         """Return offsets [m], shape (..., 3), for features of shape (..., F)."""
-        hidden = np.tanh(((features - self.input_mean) / self.input_std) @ self.w1 + self.b1)
-        return np.asarray((hidden @ self.w2 + self.b2) * self.output_scale)
+        with np.errstate(over='ignore', invalid='ignore'):  # huge weights: inf, checked later
+            hidden = np.tanh(((features - self.input_mean) / self.input_std) @ self.w1
+                             + self.b1)
+            return np.asarray((hidden @ self.w2 + self.b2) * self.output_scale)
 
     def save(self, path: str | Path) -> None:
         """Write the weights as a compressed .npz file."""
@@ -73,27 +81,85 @@ class NeuralBaseline:
 
     @classmethod
     def load(cls, path: str | Path) -> NeuralBaseline:
-        """Read weights written by save().
+        """Read weights written by save(), checking every array before it is used.
+
+        The file must be a regular .npz file within the size cap (yaml_file.read_file_bytes),
+        its uncompressed arrays within the same cap, every array numeric, of the expected
+        shape and finite, input_std non-zero and output_scale one positive finite number.
 
         Raises:
-            NeuralBaselineError: When the file is missing or the shapes do not fit.
+            NeuralBaselineError: When the file is missing, unreadable, or any check fails.
         """
-        try:
-            with np.load(path) as data:
-                arrays = {name: np.asarray(data[name], dtype=float) for name in (
-                    'input_mean', 'input_std', 'w1', 'b1', 'w2', 'b2', 'output_scale')}
-        except (OSError, KeyError, ValueError) as error:
-            raise NeuralBaselineError(f'{path}: cannot read network weights ({error})') from error
-        hidden = arrays['w1'].shape[-1]
+        data = read_file_bytes(Path(path), NeuralBaselineError, 'network weights')
+        arrays = _read_npz(data, str(path))
+        return cls.from_arrays(arrays, str(path))
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray], source: str = '<arrays>'
+                    ) -> NeuralBaseline:
+        """Build a network from named arrays (the .npz members), checking them all.
+
+        Raises:
+            NeuralBaselineError: Naming the array and what was expected.
+        """
+        missing = [name for name in WEIGHT_ARRAYS if name not in arrays]
+        if missing:
+            raise NeuralBaselineError(f'{source}: missing array(s) {", ".join(missing)}')
+        values: dict[str, np.ndarray] = {}
+        for name in WEIGHT_ARRAYS:
+            array = np.asarray(arrays[name])
+            if array.dtype.kind not in 'biuf':
+                raise NeuralBaselineError(f'{source}: {name} holds {array.dtype} values, '
+                                          'expected real numbers')
+            values[name] = array.astype(np.float64)
+            if not np.all(np.isfinite(values[name])):
+                raise NeuralBaselineError(f'{source}: {name} holds NaN or infinity')
+        w1 = values['w1']
+        hidden = w1.shape[-1] if w1.ndim == 2 else -1
         expected = {'input_mean': (FEATURE_COUNT,), 'input_std': (FEATURE_COUNT,),
                     'w1': (FEATURE_COUNT, hidden), 'b1': (hidden,), 'w2': (hidden, 3),
-                    'b2': (3,)}
+                    'b2': (3,), 'output_scale': ()}
+        if values['output_scale'].shape == (1,):
+            values['output_scale'] = values['output_scale'].reshape(())
         for name, shape in expected.items():
-            if arrays[name].shape != shape:
-                raise NeuralBaselineError(f'{path}: {name} has shape {arrays[name].shape}, '
-                                          f'expected {shape}')
-        return cls(arrays['input_mean'], arrays['input_std'], arrays['w1'], arrays['b1'],
-                   arrays['w2'], arrays['b2'], float(arrays['output_scale']))
+            if values[name].shape != shape or hidden < 1:
+                wanted = tuple('H' if size == hidden else size for size in shape)
+                raise NeuralBaselineError(f'{source}: {name} has shape {values[name].shape}, '
+                                          f'expected {wanted} (H hidden units >= 1)')
+        if np.any(values['input_std'] == 0.0):
+            raise NeuralBaselineError(f'{source}: input_std holds zeros (features divide by it)')
+        scale = float(values['output_scale'])
+        if not 0.0 < scale <= MAX_OUTPUT_SCALE:
+            raise NeuralBaselineError(f'{source}: output_scale {scale:g} must be in '
+                                      f'(0, {MAX_OUTPUT_SCALE:g}] [m per output unit]')
+        return cls(values['input_mean'], values['input_std'], w1, values['b1'],
+                   values['w2'], values['b2'], scale)
+
+
+def _read_npz(data: bytes, source: str) -> dict[str, np.ndarray]:
+    """Return the arrays of an .npz archive held in `data`, never unpickling objects.
+
+    Raises:
+        NeuralBaselineError: For a file that is not an .npz archive (an .npy, say), members
+            that would decompress beyond the size cap, or unreadable members.
+    """
+    if not zipfile.is_zipfile(io.BytesIO(data)):
+        raise NeuralBaselineError(f'{source}: not an .npz archive (np.savez); an .npy file or '
+                                  'another format cannot hold the network')
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as archive:
+            total = sum(member.file_size for member in archive.infolist())
+        if total > MAX_DATA_FILE_BYTES:
+            raise NeuralBaselineError(f'{source}: arrays of {total} bytes uncompressed, more '
+                                      f'than the {MAX_DATA_FILE_BYTES} allowed')
+        with np.load(io.BytesIO(data), allow_pickle=False) as archive:
+            names = [name for name in archive.files if name in WEIGHT_ARRAYS]
+            return {name: np.asarray(archive[name]) for name in names}
+    except NeuralBaselineError:
+        raise
+    except Exception as error:  # zipfile, zlib and numpy's format module raise many types
+        raise NeuralBaselineError(f'{source}: cannot read network weights '
+                                  f'({type(error).__name__}: {str(error)[:200]})') from error
 
 
 def train_neural_baseline(features: np.ndarray, offsets: np.ndarray, hidden: int = 16,

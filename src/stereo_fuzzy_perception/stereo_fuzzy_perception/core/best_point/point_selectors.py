@@ -37,11 +37,13 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
 from stereo_fuzzy_perception.core.best_point.fuzzy_inference import infer
 from stereo_fuzzy_perception.core.best_point.neural_baseline import (
     NeuralBaseline,
+    NeuralBaselineError,
     neural_base_point,
     neural_features,
 )
 from stereo_fuzzy_perception.core.best_point.rule_base import (
     RuleBase,
+    RuleBaseError,
     data_path,
     load_rule_base,
     packaged_rule_base,
@@ -50,6 +52,13 @@ from stereo_fuzzy_perception.core.best_point.work_surface import SurfacePlane
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+
+NON_FINITE_POINT = 'non_finite_point'
+"""Status of a decision whose point came out NaN or infinite (e.g. overflowing weights)."""
+OUTSIDE_WORKSPACE = 'outside_workspace'
+"""Status of a decision whose point lies outside the workspace box: never published."""
+OUTPUT_STATUSES = (NON_FINITE_POINT, OUTSIDE_WORKSPACE)
+"""Refusals of the final output check, in the order it applies them."""
 
 SELECTORS = ('fuzzy_fitted', 'fuzzy_chapter', 'centroid', 'max_score', 'neural_network')
 FUZZY_SELECTORS = ('fuzzy_fitted', 'fuzzy_chapter')
@@ -203,7 +212,7 @@ class BestPointChooser:
             elif selector == 'neural_network':
                 network = NeuralBaseline.load(
                     Path(weights_file) if weights_file else data_path(NEURAL_WEIGHTS_FILE))
-        except ValueError as error:
+        except (RuleBaseError, NeuralBaselineError) as error:
             raise SelectorError(str(error)) from error
         return cls(selector, area_config, rig.world_from_left_camera(), rule_base, network)
 
@@ -271,7 +280,12 @@ class BestPointChooser:
         return self._choose(decision, point)
 
     def _choose(self, decision: BestPointDecision, point: np.ndarray) -> BestPointDecision:
-        decision.best_point_world = np.asarray(point, dtype=float)
+        """Accept `point` as the best point only if it passes output_problem."""
+        point = np.asarray(point, dtype=float)
+        problem = output_problem(point, self.area_config)
+        if problem is not None:
+            return self._refuse(decision, *problem)
+        decision.best_point_world = point
         pose = self.world_from_camera
         decision.best_point_camera = pose[:3, :3].T @ (decision.best_point_world - pose[:3, 3])
         return decision
@@ -293,6 +307,47 @@ class BestPointChooser:
         decision.d1, decision.d2, decision.ratio = areas.d1, areas.d2, areas.ratio
 
 
+def output_problem(point: np.ndarray, config: AreaConfig) -> tuple[str, str] | None:
+    """Return (status, reason) when `point` [m, world] must not be published, else None.
+
+    The last check before a best point leaves the chooser, whatever the selector, rule base or
+    weights: the point must be three finite numbers inside the workspace box of `config`
+    (where the gantry can go and where the correlation area's points were taken from).
+    """
+    if point.shape != (3,) or not np.all(np.isfinite(point)):
+        return NON_FINITE_POINT, f'the selector gave a non-finite point {_describe(point)}'
+    low, high = np.asarray(config.workspace_min), np.asarray(config.workspace_max)
+    outside = [f'{axis} = {value:.4g} not in [{lo:g}, {hi:g}]'
+               for axis, value, lo, hi in zip('xyz', point, low, high, strict=True)
+               if not lo <= value <= hi]
+    if outside:
+        return OUTSIDE_WORKSPACE, ("the selector's point lies outside the workspace box: "
+                                   + ', '.join(outside))
+    return None
+
+
+def _describe(point: np.ndarray) -> str:
+    return '(' + ', '.join(f'{value:.4g}' for value in np.ravel(point)[:3]) + ')'
+
+
+def load_selector_files(rule_base_file: str, weights_file: str) -> None:
+    """Load and check the given rule base and weights files, whichever selector is active.
+
+    A file set while another selector is active is checked now, not when the selector is
+    switched to it. Empty names (the packaged files) are not read.
+
+    Raises:
+        SelectorError: With the reason of the first file that cannot be used.
+    """
+    try:
+        if rule_base_file:
+            load_rule_base(rule_base_file)
+        if weights_file:
+            NeuralBaseline.load(weights_file)
+    except (RuleBaseError, NeuralBaselineError) as error:
+        raise SelectorError(str(error)) from error
+
+
 def area_features(points: MatchedPoints, left: CameraCalibration, right: CameraCalibration,
                   world_from_camera: np.ndarray, config: AreaConfig
                   ) -> tuple[CorrelationArea, FourAreas | None]:
@@ -304,5 +359,7 @@ def area_features(points: MatchedPoints, left: CameraCalibration, right: CameraC
     return area, (areas if areas.status == STATUS_OK else None)
 
 
-__all__ = ['DEGENERATE_AREA', 'SELECTORS', 'BestPointChooser', 'BestPointDecision',
-           'SelectorError', 'area_features', 'disparity_shift', 'principal_point']
+__all__ = ['DEGENERATE_AREA', 'NON_FINITE_POINT', 'OUTPUT_STATUSES', 'OUTSIDE_WORKSPACE',
+           'SELECTORS', 'BestPointChooser', 'BestPointDecision', 'SelectorError',
+           'area_features', 'disparity_shift', 'load_selector_files', 'output_problem',
+           'principal_point']

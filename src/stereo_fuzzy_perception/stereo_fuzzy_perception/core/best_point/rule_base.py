@@ -101,19 +101,64 @@ class RuleBase:
         raise KeyError(name)
 
 
+MAX_TERMS = 100
+"""Most membership functions a rule base may define."""
+MAX_RULES = 1000
+"""Most rules a rule base may hold."""
+MAX_OFFSET_M = 10.0
+"""Largest |offset| of a consequent or of height_offset_m [m]: the workspace limits' range."""
+MAX_BREAK_POINT = 1e6
+"""Largest |break point| of a membership function over r = d1 / d2 [-]."""
+
+
 def _fail(source: str, where: str, what: str) -> RuleBaseError:
     return RuleBaseError(f'{source}: {where}: {what}')
 
 
-def _number(value: Any, source: str, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
-            float(value)):
-        raise _fail(source, where, f'{value!r} is not a finite number')
-    return float(value)
+def _short(value: Any) -> str:
+    """Return repr(value) cut to 60 characters, for messages about hostile files."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + '...'
+
+
+def _number(value: Any, source: str, where: str, limit: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise _fail(source, where, f'{_short(value)} is not a number')
+    try:
+        number = float(value)
+    except OverflowError as error:  # an integer beyond the float range
+        raise _fail(source, where, f'{_short(value)} is not a finite number') from error
+    if not math.isfinite(number):
+        raise _fail(source, where, f'{_short(value)} is not a finite number')
+    if abs(number) > limit:
+        raise _fail(source, where, f'{number:g} is beyond the allowed +-{limit:g}')
+    return number
+
+
+def _text(value: Any, source: str, where: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise _fail(source, where, f'{_short(value)} is not a non-empty string')
+    return value
+
+
+def _mapping(value: Any, source: str, where: str, expected: str) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise _fail(source, where, f'expected {expected}, got {type(value).__name__}')
+    odd = [key for key in value if not isinstance(key, str)]
+    if odd:
+        raise _fail(source, where, f'key {_short(odd[0])} is not a string')
+    return value
+
+
+def _area(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= 4
 
 
 def rule_base_from_dict(data: Any, source: str = '<dict>') -> RuleBase:
     """Build and validate a rule base from parsed YAML.
+
+    Every value is checked for type, finiteness and range before use, so any parsed YAML
+    document gives either a usable rule base or a RuleBaseError, never another exception.
 
     Args:
         data: The parsed document.
@@ -125,8 +170,7 @@ def rule_base_from_dict(data: Any, source: str = '<dict>') -> RuleBase:
     Raises:
         RuleBaseError: Naming the bad entry and what was expected.
     """
-    if not isinstance(data, dict):
-        raise _fail(source, 'document', f'expected a mapping, got {type(data).__name__}')
+    data = _mapping(data, source, 'document', 'a mapping')
     for key in ('name', 'membership_functions', 'rules'):
         if key not in data:
             raise _fail(source, 'document', f'missing key {key!r}')
@@ -134,63 +178,84 @@ def rule_base_from_dict(data: Any, source: str = '<dict>') -> RuleBase:
                            'rules'}
     if unknown:
         raise _fail(source, 'document', f'unknown key(s) {", ".join(sorted(unknown))}')
+    name = _text(data['name'], source, 'name')
+    description = data.get('description', '')
+    if description is None:
+        description = ''
+    if not isinstance(description, str):
+        raise _fail(source, 'description', f'{_short(description)} is not a string')
+    terms = _terms(data['membership_functions'], source)
+    rules = _rules(data['rules'], {term.name for term in terms}, source)
+    height = _number(data.get('height_offset_m', 0.0), source, 'height_offset_m', MAX_OFFSET_M)
+    return RuleBase(name, description, tuple(terms), tuple(rules), height)
+
+
+def _terms(raw_terms: Any, source: str) -> list[TriangularTerm]:
+    if not isinstance(raw_terms, list) or not raw_terms or len(raw_terms) > MAX_TERMS:
+        raise _fail(source, 'membership_functions',
+                    f'expected a non-empty list of at most {MAX_TERMS} membership functions')
     terms: list[TriangularTerm] = []
-    raw_terms = data['membership_functions']
-    if not isinstance(raw_terms, list) or not raw_terms:
-        raise _fail(source, 'membership_functions', 'expected a non-empty list')
-    for index, entry in enumerate(raw_terms):
+    for index, raw in enumerate(raw_terms):
         where = f'membership_functions[{index}]'
-        if not isinstance(entry, dict) or 'name' not in entry or 'points' not in entry:
-            raise _fail(source, where, 'expected {name: ..., points: [a, b, c]}')
-        where = f'membership function {entry["name"]!r}'
+        entry = _mapping(raw, source, where, '{name: ..., points: [a, b, c]}')
+        if set(entry) != {'name', 'points'}:
+            raise _fail(source, where, 'expected exactly the keys name and points')
+        name = _text(entry['name'], source, where + '.name')
+        where = f'membership function {name!r}'
         points = entry['points']
         if not isinstance(points, list) or len(points) != 3:
-            raise _fail(source, where, f'points {points!r}: expected three break points')
-        a, b, c = (_number(value, source, where) for value in points)
+            raise _fail(source, where, f'points {_short(points)}: expected three break points')
+        a, b, c = (_number(value, source, where, MAX_BREAK_POINT) for value in points)
         if not a <= b <= c or a == c:
             raise _fail(source, where, f'break points {a}, {b}, {c} must satisfy a <= b <= c '
                                        'with a < c')
-        if any(term.name == entry['name'] for term in terms):
+        if any(term.name == name for term in terms):
             raise _fail(source, where, 'defined twice')
-        terms.append(TriangularTerm(str(entry['name']), a, b, c))
-    names = {term.name for term in terms}
+        terms.append(TriangularTerm(name, a, b, c))
+    return terms
+
+
+def _rules(raw_rules: Any, names: set[str], source: str) -> list[FuzzyRule]:
+    if not isinstance(raw_rules, list) or not raw_rules or len(raw_rules) > MAX_RULES:
+        raise _fail(source, 'rules', f'expected a non-empty list of at most {MAX_RULES} rules')
     rules: list[FuzzyRule] = []
-    raw_rules = data['rules']
-    if not isinstance(raw_rules, list) or not raw_rules:
-        raise _fail(source, 'rules', 'expected a non-empty list')
-    for index, entry in enumerate(raw_rules):
-        where = f'rules[{index}]'
-        if not isinstance(entry, dict):
-            raise _fail(source, where, 'expected a mapping')
-        where = f'rule {entry.get("name", index)!r}'
+    for index, raw in enumerate(raw_rules):
+        entry = _mapping(raw, source, f'rules[{index}]', 'a mapping')
+        where = f'rule {_short(entry.get("name", index))}'
         missing = [key for key in ('name', 'area', 'if', 'then') if key not in entry]
         if missing:
             raise _fail(source, where, f'missing key(s) {", ".join(missing)}')
+        unknown = set(entry) - {'name', 'area', 'if', 'then'}
+        if unknown:
+            raise _fail(source, where, f'unknown key(s) {", ".join(sorted(unknown))}')
+        name = _text(entry['name'], source, f'rules[{index}].name')
+        where = f'rule {name!r}'
         area = entry['area']
-        if area not in (1, 2, 3, 4) or isinstance(area, bool):
-            raise _fail(source, where, f'area {area!r} is not one of 1, 2, 3, 4')
-        if entry['if'] not in names:
-            raise _fail(source, where, f'premise term {entry["if"]!r} is not a membership '
+        if not _area(area):
+            raise _fail(source, where, f'area {_short(area)} is not one of 1, 2, 3, 4')
+        term = entry['if']
+        if not isinstance(term, str) or term not in names:
+            raise _fail(source, where, f'premise term {_short(term)} is not a membership '
                                        f'function ({", ".join(sorted(names))})')
-        then = entry['then']
-        if not isinstance(then, dict) or 'areas' not in then:
+        then = _mapping(entry['then'], source, where + ' then',
+                        '{areas: [...], offset_m: [dx, dy, dz]}')
+        if 'areas' not in then or not set(then) <= {'areas', 'offset_m'}:
             raise _fail(source, where, 'then: expected {areas: [...], offset_m: [dx, dy, dz]}')
         areas = then['areas']
-        if (not isinstance(areas, list) or not areas
-                or any(k not in (1, 2, 3, 4) or isinstance(k, bool) for k in areas)
+        if (not isinstance(areas, list) or not areas or not all(_area(k) for k in areas)
                 or len(set(areas)) != len(areas)):
-            raise _fail(source, where, f'then.areas {areas!r}: expected distinct areas 1..4')
+            raise _fail(source, where,
+                        f'then.areas {_short(areas)}: expected distinct areas 1..4')
         offset = then.get('offset_m', [0.0, 0.0, 0.0])
         if not isinstance(offset, list) or len(offset) != 3:
-            raise _fail(source, where, f'then.offset_m {offset!r}: expected [dx, dy, dz] [m]')
-        dx, dy, dz = (_number(value, source, where + ' then.offset_m') for value in offset)
-        if any(rule.name == entry['name'] for rule in rules):
+            raise _fail(source, where,
+                        f'then.offset_m {_short(offset)}: expected [dx, dy, dz] [m]')
+        dx, dy, dz = (_number(value, source, where + ' then.offset_m', MAX_OFFSET_M)
+                      for value in offset)
+        if any(rule.name == name for rule in rules):
             raise _fail(source, where, 'defined twice')
-        rules.append(FuzzyRule(str(entry['name']), int(area), str(entry['if']),
-                               tuple(int(k) for k in areas), (dx, dy, dz)))
-    height = _number(data.get('height_offset_m', 0.0), source, 'height_offset_m')
-    return RuleBase(str(data['name']), str(data.get('description', '')), tuple(terms),
-                    tuple(rules), height)
+        rules.append(FuzzyRule(name, area, term, tuple(areas), (dx, dy, dz)))
+    return rules
 
 
 def rule_base_to_dict(rule_base: RuleBase) -> dict[str, Any]:
