@@ -1,6 +1,7 @@
 """Camera calibration as standard stereo calibration publishes it (K, D, R, P per camera).
 
-ROS-free: plain numpy. `conversions.py` turns sensor_msgs/CameraInfo into these types.
+ROS-free: plain numpy. `nodes/conversions/images.py` turns sensor_msgs/CameraInfo into these
+types.
 """
 
 from __future__ import annotations

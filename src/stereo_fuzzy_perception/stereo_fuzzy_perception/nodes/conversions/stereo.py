@@ -1,0 +1,104 @@
+"""The correlation stage's messages: StereoPair in, StereoMatches and DisparityImage out.
+
+A pair is size-checked before anything is decoded, then decoded into grey arrays and its
+calibration; the results pack the triangulated matches (a PointCloud2), the rectified
+calibration and the matcher settings.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import TYPE_CHECKING
+
+import numpy as np
+from sensor_msgs.msg import Image, RegionOfInterest
+from std_msgs.msg import Header
+from stereo_msgs.msg import DisparityImage
+
+from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
+from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+from stereo_fuzzy_perception.core.image_encoding import to_gray
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.nodes.conversions.images import (
+    ImageSizeError,
+    byte_array,
+    calibration_to_camera_info,
+    camera_info_to_calibration,
+    image_size_problem,
+    image_to_array,
+)
+from stereo_fuzzy_perception.nodes.conversions.point_cloud import matched_points_to_cloud
+
+if TYPE_CHECKING:  # annotations only
+    from stereo_fuzzy_perception.core.matching.window_matcher import DisparityMap, MatcherConfig
+
+
+def check_pair_size(pair: StereoPair, max_pixels: int) -> None:
+    """Refuse a pair with an image above the size limits before anything is decoded.
+
+    Raises:
+        ImageSizeError: Naming the side, its size and the limit.
+    """
+    for side, image in (('left', pair.left_image), ('right', pair.right_image)):
+        problem = image_size_problem(int(image.width), int(image.height), max_pixels)
+        if problem:
+            raise ImageSizeError(f'{side} {problem}')
+
+
+def stereo_pair_to_domain(pair: StereoPair) -> tuple[np.ndarray, np.ndarray, StereoCalibration]:
+    """Decode a StereoPair into grey left and right arrays and the pair's calibration.
+
+    The calibration is not validated here (see StereoCalibration.problem()).
+
+    Raises:
+        ImageEncodingError: For an unsupported encoding or a malformed image buffer.
+    """
+    left = to_gray(image_to_array(pair.left_image), pair.left_image.encoding)
+    right = to_gray(image_to_array(pair.right_image), pair.right_image.encoding)
+    calibration = StereoCalibration(camera_info_to_calibration(pair.left_info),
+                                    camera_info_to_calibration(pair.right_info))
+    return left, right, calibration
+
+
+def stereo_matches_message(header: Header, rectified: StereoCalibration, points: MatchedPoints,
+                           config: MatcherConfig) -> StereoMatches:
+    """Pack triangulated matches, the rectified calibration and the matcher settings."""
+    msg = StereoMatches()
+    msg.header = header
+    msg.left_info = calibration_to_camera_info(rectified.left, header)
+    msg.right_info = calibration_to_camera_info(rectified.right, header)
+    msg.points = matched_points_to_cloud(points, header)
+    msg.method = config.method
+    msg.window_size = int(config.window_size)
+    msg.min_disparity = int(config.min_disparity)
+    msg.disparity_range = int(config.disparity_range)
+    return msg
+
+
+def disparity_image_message(disparity_map: DisparityMap, rectified: StereoCalibration,
+                            header: Header) -> DisparityImage:
+    """Pack a disparity map as stereo_msgs/DisparityImage (32FC1), as stereo_image_proc does.
+
+    Disparities are shifted by the principal-point difference, d - (cx_l - cx_r), as the message
+    defines them; invalid pixels get min_disparity - 1 (below the searched range).
+    """
+    shift = float(rectified.left.P[0, 2] - rectified.right.P[0, 2])
+    config = disparity_map.config
+    low = float(config.min_disparity) - shift
+    image = disparity_map.disparity - np.float32(shift)
+    image[~np.isfinite(image)] = low - 1.0
+    msg = DisparityImage()
+    msg.header = header
+    msg.image = Image(header=header, height=image.shape[0], width=image.shape[1],
+                      encoding='32FC1', is_bigendian=int(sys.byteorder == 'big'),
+                      step=4 * image.shape[1], check_fields=True)
+    msg.image.data = byte_array(image)
+    msg.f = float(rectified.left.P[0, 0])
+    msg.t = float(rectified.baseline_m)
+    x, y, width, height = disparity_map.roi
+    msg.valid_window = RegionOfInterest(x_offset=x, y_offset=y, width=width, height=height)
+    msg.min_disparity = low
+    msg.max_disparity = float(config.max_disparity) - shift
+    msg.delta_d = 1.0 / 16.0 if config.subpixel else 1.0
+    return msg
+
