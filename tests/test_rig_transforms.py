@@ -119,10 +119,8 @@ def best_point_error_mm(decision, scene) -> float:
 
 
 def test_pose_file_places_a_rig_the_rig_numbers_do_not_describe(harness, tmp_path):
-    from stereo_fuzzy_perception.core.rig_pose import (
-        chapter_left_camera_transform,
-        write_pose_file,
-    )
+    from stereo_fuzzy_perception.core.pose_file import write_pose_file
+    from stereo_fuzzy_perception.core.rig_pose import chapter_left_camera_transform
 
     rig = other_rig()
     scene = make_scene(rig)
@@ -222,11 +220,9 @@ def test_rig_transforms_node_publishes_the_pose_file_and_right_camera_on_tf_stat
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
     from stereo_fuzzy_perception.core.camera_calibration_file import write_calibration_yaml
-    from stereo_fuzzy_perception.core.rig_pose import (
-        chapter_left_camera_transform,
-        lookup_transform,
-        write_pose_file,
-    )
+    from stereo_fuzzy_perception.core.frame_transforms import lookup_transform
+    from stereo_fuzzy_perception.core.pose_file import write_pose_file
+    from stereo_fuzzy_perception.core.rig_pose import chapter_left_camera_transform
     from stereo_fuzzy_perception.nodes import qos
     from stereo_fuzzy_perception.nodes.conversions import tf_message_to_transforms
     from stereo_fuzzy_perception.nodes.rig_transforms_node import RigTransformsNode
@@ -310,7 +306,7 @@ def test_driver_publishes_world_to_tool_on_tf_at_the_reported_position(ros_conte
 def test_rendered_bags_carry_the_rig_they_were_rendered_with_on_tf_static(tmp_path):
     from rclpy.serialization import deserialize_message
     from stereo_fuzzy_perception.bag.bag_io import read_info, read_messages
-    from stereo_fuzzy_perception.core.rig_pose import lookup_transform
+    from stereo_fuzzy_perception.core.frame_transforms import lookup_transform
     from stereo_fuzzy_perception.nodes.conversions import tf_message_to_transforms
     from stereo_fuzzy_perception.simulation.scene_bag_writer import (
         SceneBagSettings,
@@ -424,8 +420,8 @@ def test_installed_rig_transforms_node_serves_the_demo_pose_file_and_refuses_a_b
 
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
+    from stereo_fuzzy_perception.core.frame_transforms import lookup_transform
     from stereo_fuzzy_perception.core.rig_geometry import StereoRig
-    from stereo_fuzzy_perception.core.rig_pose import lookup_transform
     from stereo_fuzzy_perception.nodes import qos
     from stereo_fuzzy_perception.nodes.conversions import tf_message_to_transforms
 

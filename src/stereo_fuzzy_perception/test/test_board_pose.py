@@ -7,8 +7,8 @@ from stereo_fuzzy_perception.core.board_pose import (
     CheckerBoard,
     board_pose,
 )
+from stereo_fuzzy_perception.core.frame_transforms import rotation_angle_deg
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
-from stereo_fuzzy_perception.core.rig_pose import rotation_angle_deg
 from stereo_fuzzy_perception.simulation.scene_renderer import SceneRenderer, SensorModel
 
 # Issue #16's targets for a rendered board seen from about 0.5 m.

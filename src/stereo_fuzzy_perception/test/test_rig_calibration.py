@@ -8,16 +8,15 @@ import numpy as np
 import pytest
 from stereo_fuzzy_perception.core.board_pose import CheckerBoard
 from stereo_fuzzy_perception.core.camera_calibration_file import write_calibration_yaml
-from stereo_fuzzy_perception.core.rig_description import JOINT_NAMES, gantry_urdf
-from stereo_fuzzy_perception.core.rig_geometry import StereoRig
-from stereo_fuzzy_perception.core.rig_pose import (
+from stereo_fuzzy_perception.core.frame_transforms import (
     LEFT_CAMERA_FRAME,
     Transform,
-    camera_pose_from_file,
-    chapter_left_camera_transform,
-    read_pose_file,
     rotation_angle_deg,
 )
+from stereo_fuzzy_perception.core.pose_file import camera_pose_from_file, read_pose_file
+from stereo_fuzzy_perception.core.rig_description import JOINT_NAMES, gantry_urdf
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+from stereo_fuzzy_perception.core.rig_pose import chapter_left_camera_transform
 from stereo_fuzzy_perception.rig.rig_calibration import main
 from stereo_fuzzy_perception.simulation.scene_model import SimulatedCamera
 from stereo_fuzzy_perception.simulation.scene_renderer import SceneRenderer, stereo_calibration
@@ -106,7 +105,7 @@ def test_chapter_baseline_that_disagrees_with_the_calibration_is_refused(board_f
 def test_urdf_has_three_prismatic_joints_limited_to_the_workspace_and_the_cameras(tmp_path):
     pose_file = tmp_path / 'rig_pose.yaml'
     transform = chapter_left_camera_transform(StereoRig())
-    from stereo_fuzzy_perception.core.rig_pose import write_pose_file
+    from stereo_fuzzy_perception.core.pose_file import write_pose_file
 
     write_pose_file(pose_file, [transform])
     output = tmp_path / 'gantry.urdf'
@@ -132,7 +131,7 @@ def test_urdf_has_three_prismatic_joints_limited_to_the_workspace_and_the_camera
 
 
 def test_urdf_refuses_a_mount_on_an_unknown_frame():
-    from stereo_fuzzy_perception.core.rig_pose import RigPoseError
+    from stereo_fuzzy_perception.core.frame_transforms import RigPoseError
 
     mount = Transform('camera_bar', LEFT_CAMERA_FRAME, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
     with pytest.raises(RigPoseError, match="parent 'camera_bar' is not a link"):

@@ -26,7 +26,7 @@ def test_transform_round_trips_through_tf_message():
 
 def test_unusable_transforms_are_left_out_not_raised():
     from builtin_interfaces.msg import Time
-    from stereo_fuzzy_perception.core.rig_pose import Transform
+    from stereo_fuzzy_perception.core.frame_transforms import Transform
     from stereo_fuzzy_perception.nodes.conversions import (
         tf_message_to_transforms,
         transforms_to_tf_message,

@@ -6,24 +6,24 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from stereo_fuzzy_perception.core.rig_geometry import StereoRig, rotation_x, rotation_y, rotation_z
-from stereo_fuzzy_perception.core.rig_pose import (
+from stereo_fuzzy_perception.core.frame_transforms import (
     LEFT_CAMERA_FRAME,
     RIGHT_CAMERA_FRAME,
-    CameraPoseSource,
     RigPoseError,
     Transform,
-    chapter_left_camera_transform,
-    check_baseline,
     lookup_transform,
     matrix_from_quaternion,
-    pose_file_text,
     quaternion_from_matrix,
-    read_pose_file,
-    right_camera_transform,
     rotation_angle_deg,
     rpy_from_matrix,
-    write_pose_file,
+)
+from stereo_fuzzy_perception.core.pose_file import pose_file_text, read_pose_file, write_pose_file
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig, rotation_x, rotation_y, rotation_z
+from stereo_fuzzy_perception.core.rig_pose import (
+    CameraPoseSource,
+    chapter_left_camera_transform,
+    check_baseline,
+    right_camera_transform,
 )
 from stereo_fuzzy_perception.simulation.scene_model import SimulatedCamera
 from stereo_fuzzy_perception.simulation.scene_renderer import stereo_calibration

@@ -4,10 +4,10 @@ Three prismatic joints in series carry the tool: x (world -> gantry_x_carriage),
 gantry_y_carriage), z (-> tool), each along its world axis with zero offset, so the joint
 positions the driver publishes on joint_states are the tool's world coordinates and the joint
 limits are the workspace box. The cameras hang off `world` by fixed joints whose origins are
-the transforms of a pose file (core/rig_pose.py), so the URDF and the pose file cannot disagree
+the transforms of a pose file (core/pose_file.py), so the URDF and the pose file cannot disagree
 when one is generated from the other.
 
-ROS-free: the standard library (and numpy through rig_pose).
+ROS-free: the standard library (and numpy through frame_transforms).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import math
 from collections.abc import Sequence
 from xml.etree import ElementTree
 
-from stereo_fuzzy_perception.core.rig_pose import (
+from stereo_fuzzy_perception.core.frame_transforms import (
     WORLD_FRAME,
     RigPoseError,
     Transform,

@@ -24,12 +24,12 @@ from stereo_msgs.msg import DisparityImage
 
 from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
 from stereo_fuzzy_perception.core.camera_model import CalibrationError, StereoCalibration
+from stereo_fuzzy_perception.core.frame_transforms import RigPoseError
 from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError
 from stereo_fuzzy_perception.core.matching.disparity_range import DisparityRangeError
 from stereo_fuzzy_perception.core.matching.rectification import RectificationError
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
 from stereo_fuzzy_perception.core.matching.window_matcher import MatcherInputError, warm_up
-from stereo_fuzzy_perception.core.rig_pose import RigPoseError
 from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
 from stereo_fuzzy_perception.nodes import qos
 from stereo_fuzzy_perception.nodes.conversions import (

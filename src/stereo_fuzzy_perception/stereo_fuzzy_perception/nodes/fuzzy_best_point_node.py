@@ -49,13 +49,12 @@ from stereo_fuzzy_perception.core.best_point.point_selectors import (
     load_selector_files,
 )
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
-from stereo_fuzzy_perception.core.rig_pose import (
+from stereo_fuzzy_perception.core.frame_transforms import (
     LEFT_CAMERA_FRAME,
-    RIG_PARAMETERS,
-    CameraPoseSource,
     RigPoseError,
     Transform,
 )
+from stereo_fuzzy_perception.core.rig_pose import RIG_PARAMETERS, CameraPoseSource
 from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
 from stereo_fuzzy_perception.nodes import qos
 from stereo_fuzzy_perception.nodes.conversions import (

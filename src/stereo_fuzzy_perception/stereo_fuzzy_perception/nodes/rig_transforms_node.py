@@ -1,6 +1,6 @@
 """Publish the rig's static frames on /tf_static, as tf2_ros' static_transform_publisher does.
 
-From one pose file (core/rig_pose.py; what rig_calibration writes): world -> the left camera's
+From one pose file (core/pose_file.py; what rig_calibration writes): world -> the left camera's
 optical frame and any other static transform in it; from the stereo calibration files, when
 given: left -> right optical frame (R of each camera, baseline of the right P). All of them go
 out in one tf2_msgs/TFMessage on /tf_static (reliable, transient local, depth 1), so RViz,
@@ -19,12 +19,9 @@ from stereo_fuzzy_perception.core.camera_calibration_file import (
     read_calibration_yaml,
 )
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
-from stereo_fuzzy_perception.core.rig_pose import (
-    RigPoseError,
-    Transform,
-    read_pose_file,
-    right_camera_transform,
-)
+from stereo_fuzzy_perception.core.frame_transforms import RigPoseError, Transform
+from stereo_fuzzy_perception.core.pose_file import read_pose_file
+from stereo_fuzzy_perception.core.rig_pose import right_camera_transform
 from stereo_fuzzy_perception.nodes import qos
 from stereo_fuzzy_perception.nodes.conversions import transforms_to_tf_message
 from stereo_fuzzy_perception.nodes.rig_transforms_parameters import RigTransformsSettings

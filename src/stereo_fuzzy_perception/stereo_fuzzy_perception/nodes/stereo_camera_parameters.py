@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 from stereo_fuzzy_parameters.spec import parameter, parameter_specs
 
-from stereo_fuzzy_perception.core.rig_pose import LEFT_CAMERA_FRAME, RIGHT_CAMERA_FRAME
+from stereo_fuzzy_perception.core.frame_transforms import LEFT_CAMERA_FRAME, RIGHT_CAMERA_FRAME
 
 REQUIRED = ('left_device', 'right_device', 'left_calibration_file', 'right_calibration_file')
 

@@ -18,7 +18,7 @@
 
 The pose file is what fuzzy_best_point_node (rig_pose_file), rig_transforms_node and tf2_ros'
 static_transform_publisher read. ROS-free: a command-line adapter around core/board_pose.py,
-core/rig_pose.py and core/rig_description.py.
+core/rig_pose.py, core/pose_file.py and core/rig_description.py.
 """
 
 from __future__ import annotations
@@ -37,18 +37,19 @@ from stereo_fuzzy_perception.core.camera_calibration_file import (
     read_calibration_yaml,
 )
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
-from stereo_fuzzy_perception.core.rig_description import JOINT_NAMES, gantry_urdf
-from stereo_fuzzy_perception.core.rig_geometry import StereoRig
-from stereo_fuzzy_perception.core.rig_pose import (
+from stereo_fuzzy_perception.core.frame_transforms import (
     LEFT_CAMERA_FRAME,
     WORLD_FRAME,
     RigPoseError,
     Transform,
-    chapter_left_camera_transform,
-    read_pose_file,
-    right_camera_transform,
     rpy_from_matrix,
-    write_pose_file,
+)
+from stereo_fuzzy_perception.core.pose_file import read_pose_file, write_pose_file
+from stereo_fuzzy_perception.core.rig_description import JOINT_NAMES, gantry_urdf
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+from stereo_fuzzy_perception.core.rig_pose import (
+    chapter_left_camera_transform,
+    right_camera_transform,
 )
 
 # A PnP fit worse than this is refused: the board, its place or the calibration is wrong.

@@ -33,8 +33,8 @@ import numpy as np
 import pybullet
 
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration, StereoCalibration
+from stereo_fuzzy_perception.core.frame_transforms import quaternion_from_matrix
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
-from stereo_fuzzy_perception.core.rig_pose import quaternion_from_matrix
 from stereo_fuzzy_perception.simulation.scene_model import (
     GroundTruth,
     ObjectType,

@@ -5,7 +5,7 @@ from __future__ import annotations
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped
 
-from stereo_fuzzy_perception.core.rig_pose import Transform
+from stereo_fuzzy_perception.core.frame_transforms import Transform
 from tf2_msgs.msg import TFMessage
 
 
