@@ -26,7 +26,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from stereo_fuzzy_perception.chain_description import (
+from stereo_fuzzy_perception.bringup.chain_description import (
     DESCRIPTION_FILE,
     ChainDescriptionError,
     ProcessSet,

@@ -75,7 +75,7 @@ def launched_nodes(launch_file: Path, monkeypatch: pytest.MonkeyPatch,
 
 def command_line_of(node: dict) -> list[str]:
     """Return the --ros-args that launch_ros would give a Node with these keyword arguments."""
-    from stereo_fuzzy_perception.chain_description import format_parameter_value
+    from stereo_fuzzy_perception.bringup.chain_description import format_parameter_value
 
     line = ['--ros-args', '-r', f'__node:={node["name"]}']
     for entry in node['parameters']:
@@ -90,7 +90,7 @@ def command_line_of(node: dict) -> list[str]:
 
 
 def test_every_set_has_a_launch_file_and_every_launch_file_a_set():
-    from stereo_fuzzy_perception.chain_description import load_description
+    from stereo_fuzzy_perception.bringup.chain_description import load_description
 
     sets = set(load_description(DESCRIPTION).sets)
     stems = {path.name.removesuffix('.launch.py') for path in LAUNCH_FILES}
@@ -105,7 +105,7 @@ def test_every_set_has_a_launch_file_and_every_launch_file_a_set():
 
 
 def test_described_files_and_executables_exist():
-    from stereo_fuzzy_perception.chain_description import load_description
+    from stereo_fuzzy_perception.bringup.chain_description import load_description
 
     for process in load_description(DESCRIPTION).processes.values():
         setup = (REPO_ROOT / 'src' / process.package / 'setup.py').read_text()
@@ -120,7 +120,7 @@ def test_described_files_and_executables_exist():
 @pytest.mark.parametrize('given', [{}, {'params_file': 'chain/demo_params.yaml',
                                         'port': '/dev/ttyUSB3'}], ids=['defaults', 'given'])
 def test_launch_file_starts_what_the_process_starter_starts(launch_file, given, monkeypatch):
-    from stereo_fuzzy_perception.chain_description import ros_arguments
+    from stereo_fuzzy_perception.bringup.chain_description import ros_arguments
 
     from chain.processes import process_set, source_share_directory
 
@@ -144,7 +144,7 @@ def test_chain_without_hardware_links_the_driver_to_the_simulator(monkeypatch):
 
 
 def test_ros_arguments_lay_out_files_overrides_and_remappings_in_order():
-    from stereo_fuzzy_perception.chain_description import ProcessSpec, ros_arguments
+    from stereo_fuzzy_perception.bringup.chain_description import ProcessSpec, ros_arguments
 
     process = ProcessSpec('corr', 'pkg', 'correlation_node', ('config/a.yaml',),
                           (('port', '$(port)'), ('rate', 2.5), ('on', True)),
@@ -164,7 +164,10 @@ def test_ros_arguments_lay_out_files_overrides_and_remappings_in_order():
     ('processes: [1, 2]', 'must be a mapping'),
 ])
 def test_malformed_description_is_refused_with_the_entry_named(tmp_path, text, message):
-    from stereo_fuzzy_perception.chain_description import ChainDescriptionError, load_description
+    from stereo_fuzzy_perception.bringup.chain_description import (
+        ChainDescriptionError,
+        load_description,
+    )
 
     path = tmp_path / 'chain.yaml'
     path.write_text(text)
@@ -174,7 +177,10 @@ def test_malformed_description_is_refused_with_the_entry_named(tmp_path, text, m
 
 
 def test_unknown_set_and_argument_are_refused():
-    from stereo_fuzzy_perception.chain_description import ChainDescriptionError, load_description
+    from stereo_fuzzy_perception.bringup.chain_description import (
+        ChainDescriptionError,
+        load_description,
+    )
 
     description = load_description(DESCRIPTION)
     with pytest.raises(ChainDescriptionError, match='no set'):

@@ -7,7 +7,7 @@
 # process starter (chain/processes.py, launch_chain) reads too.
 from pathlib import Path
 
-from stereo_fuzzy_perception.chain_description import DESCRIPTION_FILE, launch_description
+from stereo_fuzzy_perception.bringup.chain_description import DESCRIPTION_FILE, launch_description
 
 PROCESS_SET = 'chain_without_hardware'
 
