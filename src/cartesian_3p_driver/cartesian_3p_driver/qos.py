@@ -1,31 +1,30 @@
-"""QoS profiles of the gantry driver, by name, in one place (STYLE.md).
+"""The gantry driver's QoS profiles by name: the shared ones and the driver's own.
 
-- Commands (best_point targets): reliable, keep last 10.
+The profiles the perception nodes use too are defined once in stereo_fuzzy_parameters.qos and
+re-exported here, so a node imports one module:
+
+- Commands (best_point targets): the perception's RESULTS profile (reliable, keep last 10), the
+  same object, so the publisher and this subscriber always match.
+- Diagnostics and /tf: as stereo_fuzzy_parameters.qos defines them.
+
+The driver's own:
+
 - Driver state (gantry/state): reliable, transient local, keep last 1, so a late subscriber
   gets the current state at once.
 - Joint states: reliable, keep last 10 (what robot_state_publisher expects).
-- Diagnostics: reliable, keep last 10, as diagnostic_updater publishes them.
-- /tf: reliable, keep last 100, as tf2_ros' TransformBroadcaster.
 """
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from stereo_fuzzy_parameters.qos import DIAGNOSTICS, RESULTS, TF
 
-COMMANDS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE)
+__all__ = ['COMMANDS', 'DIAGNOSTICS', 'DRIVER_STATE', 'JOINT_STATES', 'TF']
+
+COMMANDS = RESULTS
 
 DRIVER_STATE = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 JOINT_STATES = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE)
-
-TF = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE)
-
-DIAGNOSTICS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE)

@@ -1,43 +1,24 @@
-"""QoS profiles by name, in one place (STYLE.md): what each kind of topic needs.
+"""The perception nodes' QoS profiles by name: the shared ones and the camera input.
 
-- Camera inputs: sensor data (best effort, keep last 5), as camera drivers publish them.
-- Results (pairs, matches, best points, decisions): reliable, keep last 10.
-- Diagnostics: reliable, keep last 10, as diagnostic_updater publishes them.
-- /tf_static: reliable, transient local (a late subscriber still gets the transforms); keep last
-  1 to publish (every message holds all of a publisher's static transforms) and keep last 100
-  to listen, as tf2_ros' StaticBroadcasterQoS and StaticListenerQoS.
-- /tf: reliable, keep last 100, as tf2_ros' DynamicBroadcasterQoS.
+The profiles the gantry driver uses too (results, diagnostics, /tf, /tf_static) are defined
+once in stereo_fuzzy_parameters.qos and re-exported here, so a node imports one module. Only
+the perception nodes read cameras: camera inputs take the sensor-data profile (best effort,
+keep last 5), as camera drivers publish them, with the reliability overridable by parameter.
 """
 
-from rclpy.qos import (
-    DurabilityPolicy,
-    HistoryPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-    qos_profile_sensor_data,
+from rclpy.qos import ReliabilityPolicy, qos_profile_sensor_data
+from stereo_fuzzy_parameters.qos import (
+    DIAGNOSTICS,
+    RESULTS,
+    TF,
+    TF_STATIC,
+    TF_STATIC_BROADCAST,
 )
 
+__all__ = ['CAMERA_INPUT', 'DIAGNOSTICS', 'RESULTS', 'TF', 'TF_STATIC', 'TF_STATIC_BROADCAST',
+           'reliability_from_name']
+
 CAMERA_INPUT = qos_profile_sensor_data
-
-RESULTS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE)
-
-DIAGNOSTICS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE)
-
-TF_STATIC = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-TF_STATIC_BROADCAST = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-TF = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE)
 
 
 def reliability_from_name(name: str) -> ReliabilityPolicy:
