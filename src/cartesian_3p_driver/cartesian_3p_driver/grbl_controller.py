@@ -1,7 +1,7 @@
 """A simulated Grbl 1.1 controller: the state machine only, no I/O, time passed in explicitly.
 
 ROS-free. Bytes go in through `receive`, time advances through `advance`, and the lines the
-controller would print come out of `output`. The simulator's I/O layer (simulated_serial.py)
+controller would print come out of `output`. The simulator's I/O layer (grbl_simulator.py)
 wires it to a pseudo-terminal or a TCP socket.
 
 Simplifications, documented in the package README: constant-feed moves (no acceleration; a

@@ -5,9 +5,9 @@ Subscribes `stereo/matches` (StereoMatches) and `/tf_static`, publishes `best_po
 `best_point/decision` (FuzzyDecision, for every input, with the reason when no point was
 chosen), `best_point/markers` (MarkerArray in `world`: the correlation area, border points,
 numbered area centres and best point, while someone subscribes) and /diagnostics.
-The algorithm is point_selectors.BestPointChooser; this node only converts and publishes. A
-decision takes a few milliseconds even at 100k points, so it runs in the subscription callback and
-every input gets its decision.
+The algorithm is point_selectors.BestPointChooser; this node only converts and publishes. The
+decision runs in the subscription callback, so every input gets its decision; what it costs per
+point count is the "fuzzy decision time" row of the README's benchmark table.
 
 The matches' frame is placed in `world` by, in this order: the pose file `rig_pose_file`, the
 transforms on /tf_static (a replayed bag that recorded them needs no rig parameters), or the
