@@ -14,17 +14,10 @@ The driver's own:
 - Joint states: reliable, keep last 10 (what robot_state_publisher expects).
 """
 
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from stereo_fuzzy_parameters.qos import DIAGNOSTICS, RESULTS, TF
+from stereo_fuzzy_parameters.qos import DIAGNOSTICS, RESULTS, TF, reliable
 
 __all__ = ['COMMANDS', 'DIAGNOSTICS', 'DRIVER_STATE', 'JOINT_STATES', 'TF']
 
 COMMANDS = RESULTS
-
-DRIVER_STATE = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-JOINT_STATES = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE)
+DRIVER_STATE = reliable(1, transient_local=True)
+JOINT_STATES = reliable(10)

@@ -8,27 +8,23 @@
   1 to publish (every message holds all of a publisher's static transforms) and keep last 100
   to listen, as tf2_ros' StaticBroadcasterQoS and StaticListenerQoS.
 
-Profiles only one package needs live in that package's `qos` module, beside these.
+Profiles only one package needs live in that package's `qos` module, beside these, built with
+`reliable()` as these are.
 """
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-RESULTS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE)
 
-DIAGNOSTICS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE)
+def reliable(depth: int, *, transient_local: bool = False) -> QoSProfile:
+    """Return a reliable, keep-last profile of `depth`; transient local or volatile."""
+    durability = (DurabilityPolicy.TRANSIENT_LOCAL if transient_local
+                  else DurabilityPolicy.VOLATILE)
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.RELIABLE, durability=durability)
 
-TF = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE)
 
-TF_STATIC = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-TF_STATIC_BROADCAST = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL)
+RESULTS = reliable(10)
+DIAGNOSTICS = reliable(10)
+TF = reliable(100)
+TF_STATIC = reliable(100, transient_local=True)
+TF_STATIC_BROADCAST = reliable(1, transient_local=True)
