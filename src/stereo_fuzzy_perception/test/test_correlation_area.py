@@ -15,8 +15,8 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     CorrelationArea,
     CorrelationAreaError,
     find_correlation_area,
-    split_into_areas,
 )
+from stereo_fuzzy_perception.core.best_point.four_areas import split_into_areas
 from stereo_fuzzy_perception.core.best_point.object_segmentation import across_m
 from stereo_fuzzy_perception.core.best_point.work_surface import SURFACE_MEASURED
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints

@@ -5,7 +5,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import nnls
-from stereo_fuzzy_perception.core.best_point.correlation_area import STATUS_OK, FourAreas
+from stereo_fuzzy_perception.core.best_point.correlation_area import STATUS_OK
+from stereo_fuzzy_perception.core.best_point.four_areas import FourAreas
 from stereo_fuzzy_perception.core.best_point.fuzzy_inference import infer, triangular_degree
 from stereo_fuzzy_perception.core.best_point.rule_base import (
     FuzzyRule,

@@ -303,10 +303,8 @@ def check_usable_or_refused(document: object) -> None:
     except RuleBaseError as error:
         assert str(error).startswith('random: ')
         return
-    from stereo_fuzzy_perception.core.best_point.correlation_area import (
-        find_correlation_area,
-        split_into_areas,
-    )
+    from stereo_fuzzy_perception.core.best_point.correlation_area import find_correlation_area
+    from stereo_fuzzy_perception.core.best_point.four_areas import split_into_areas
     from stereo_fuzzy_perception.simulation.synthetic_scenes import GeometricSceneSource
 
     scene = GeometricSceneSource().scene(np.random.default_rng(0), 'cubic_square')

@@ -32,7 +32,7 @@ from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 from visualization_msgs.msg import MarkerArray
 
 from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
-from stereo_fuzzy_perception.core.best_point import correlation_area
+from stereo_fuzzy_perception.core.best_point import four_areas
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     DEGENERATE_AREA,
     NO_OBJECT,
@@ -151,7 +151,7 @@ class FuzzyBestPointNode(Node):
         self._pose_origin = ''
         # Compile (first run) or load the numba point kernel now, not on the first input.
         started = time.monotonic()
-        correlation_area.warm_up()
+        four_areas.warm_up()
         self.get_logger().info(
             f'point kernel ready in {time.monotonic() - started:.2f} s (numba compile or cache)')
         self.decisions: Counter[str] = Counter({STATUS_OK: 0, **dict.fromkeys(

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stereo_fuzzy_perception.core.best_point.correlation_area import FourAreas
+from stereo_fuzzy_perception.core.best_point.four_areas import FourAreas
 from stereo_fuzzy_perception.core.best_point.rule_base import RuleBase, TriangularTerm
 
 

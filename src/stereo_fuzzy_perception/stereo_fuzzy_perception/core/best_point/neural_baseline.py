@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from stereo_fuzzy_perception.core.best_point.correlation_area import CorrelationArea, FourAreas
+from stereo_fuzzy_perception.core.best_point.correlation_area import CorrelationArea
+from stereo_fuzzy_perception.core.best_point.four_areas import FourAreas
 from stereo_fuzzy_perception.core.yaml_file import MAX_DATA_FILE_BYTES, read_file_bytes
 
 FEATURE_COUNT = 14

@@ -5,9 +5,10 @@ The public entry point for nodes, the demo and benchmarks:
     chooser = BestPointChooser.create('fuzzy_fitted', AreaConfig(), StereoRig())
     decision = chooser.decide(points, left_calibration, right_calibration)
 
-Every selector shares steps 1-3 (correlation_area.py) and the height rule of step 6: the best
-point's z is the top height (median height of the correlation area) plus the selector's learned
-height offset (fitted rule base, neural network; zero otherwise). Selectors differ in x, y:
+Every selector shares steps 1-3 (correlation_area.py, four_areas.py) and the height rule of
+step 6: the best point's z is the top height (median height of the correlation area) plus the
+selector's learned height offset (fitted rule base, neural network; zero otherwise). Selectors
+differ in x, y:
 
 - fuzzy_fitted / fuzzy_chapter: Eq. 10 over the rule base's twelve rules (fuzzy_inference.py).
 - centroid: the mean of the correlation area's points.
@@ -30,10 +31,9 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     STATUS_OK,
     AreaConfig,
     CorrelationArea,
-    FourAreas,
     find_correlation_area,
-    split_into_areas,
 )
+from stereo_fuzzy_perception.core.best_point.four_areas import FourAreas, split_into_areas
 from stereo_fuzzy_perception.core.best_point.fuzzy_inference import infer
 from stereo_fuzzy_perception.core.best_point.neural_baseline import (
     NeuralBaseline,
