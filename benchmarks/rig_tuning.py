@@ -8,8 +8,15 @@ correlation_node's default settings, caches the matched points (pickle, --cache)
 the centroid and fuzzy_fitted selectors with the AreaConfig defaults; per scene it lists the
 error or why no point was chosen (the correlation area's status and reason), worst first.
 
+`--decompose` tells where the error comes from. The matched pixels whose rays meet the true
+top face ("true pixels") and the correlation area's pixels ("area pixels") are each cut with a
+plane (the true top height, or the area's) and their centroid graded: area pixels at the true
+height show what choosing the pixels costs, true pixels at the area's height what the top
+height costs, true pixels at the true height what is left to the matcher's coverage of the top.
+
     source scripts/env.sh
     nice python benchmarks/rig_tuning.py --per-type 15
+    nice python benchmarks/rig_tuning.py --per-type 15 --decompose
 """
 
 from __future__ import annotations
@@ -27,8 +34,14 @@ for variable in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ.setdefault(variable, '1')
 
 import numpy as np  # noqa: E402
-from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig  # noqa: E402
-from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.correlation_area import (  # noqa: E402
+    AreaConfig,
+    find_correlation_area,
+)
+from stereo_fuzzy_perception.core.best_point.point_selectors import (  # noqa: E402
+    BestPointChooser,
+    disparity_shift,
+)
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
 from stereo_fuzzy_perception.simulation.distribution_source import match_plan  # noqa: E402
 from stereo_fuzzy_perception.simulation.scene_distribution import split_plan  # noqa: E402
@@ -54,6 +67,48 @@ def scenes(per_type: int, stride: int, cache: Path, jobs: int
     return result
 
 
+def on_plane(world: np.ndarray, centre: np.ndarray, height: float) -> np.ndarray:
+    """Return where the rays from `centre` through (N, 3) `world` points meet z = height."""
+    scale = (height - centre[2]) / (world[:, 2] - centre[2])
+    cut: np.ndarray = centre + (world - centre) * scale[:, None]
+    return cut
+
+
+def centroid_error(points: np.ndarray, centre: np.ndarray, level: float, target: np.ndarray
+                   ) -> float:
+    """Return the distance [mm] from target of the centroid of points cut with z = level."""
+    if not len(points) or not np.isfinite(level):
+        return float('nan')
+    return 1000.0 * float(np.linalg.norm(on_plane(points, centre, level).mean(axis=0) - target))
+
+
+def decompose(matched: list[tuple[str, SyntheticScene]], config: AreaConfig,
+              tolerance_mm: float) -> None:
+    """Print the share within tolerance of the four centroids of the module docstring."""
+    rows = []
+    for _, scene in matched:
+        pose = scene.rig.world_from_left_camera()
+        centre, target, height = pose[:3, 3], scene.target_world, scene.prism.height
+        world = scene.points.xyz.astype(float) @ pose[:3, :3].T + centre
+        true_pixels = world[scene.prism.contains_xy(on_plane(world, centre, height)[:, :2])]
+        area = find_correlation_area(scene.points, pose, config,
+                                     disparity_shift(scene.left, scene.right))
+
+        found = area.top_height if area.ok else float('nan')
+        rows.append((centroid_error(area.xyz_world, centre, height, target),
+                     centroid_error(true_pixels, centre, found, target),
+                     1000.0 * abs(found - height),
+                     centroid_error(true_pixels, centre, height, target)))
+    errors = np.array(rows)
+    names = ('area pixels at the true height', 'true pixels at the area height',
+             'area height - true height (|dz|)', 'true pixels at the true height')
+    print(f'{len(errors)} train scenes; no area or no true pixel counts as a miss')
+    for name, column in zip(names, errors.T, strict=True):
+        within = 100.0 * float(np.sum(column[np.isfinite(column)] <= tolerance_mm)) / len(column)
+        print(f'  {name:34s} within {tolerance_mm:g} mm {within:5.1f} %, median '
+              f'{np.nanmedian(column):.2f} mm')
+
+
 def main() -> None:
     """Grade the selectors on the cached train-split scenes and list the failures."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -63,12 +118,17 @@ def main() -> None:
     parser.add_argument('--tolerance-mm', type=float, default=3.0)
     parser.add_argument('--cache', default='/tmp/rig_tuning_cache')
     parser.add_argument('--show', type=int, default=25, help='worst scenes listed')
+    parser.add_argument('--decompose', action='store_true',
+                        help='where the error comes from (module docstring)')
     parser.add_argument('--area', action='append', default=[], metavar='NAME=VALUE',
                         help='an AreaConfig value other than its default (float)')
     args = parser.parse_args()
     matched = scenes(args.per_type, args.point_stride, Path(args.cache), args.jobs)
     config = replace(AreaConfig(), **{item.partition('=')[0]: float(item.partition('=')[2])
                                       for item in args.area})
+    if args.decompose:
+        decompose(matched, config, args.tolerance_mm)
+        return
     for name in ('centroid', 'fuzzy_fitted'):
         chooser = BestPointChooser.create(name, config, StereoRig())
         rows = []
