@@ -11,8 +11,12 @@ every input gets its decision.
 
 The matches' frame is placed in `world` by, in this order: the pose file `rig_pose_file`, the
 transforms on /tf_static (a replayed bag that recorded them needs no rig parameters), or the
-chapter's rig.* numbers (core/rig_pose.py). A configured rig.baseline_m that disagrees with the
-calibration the matches carry refuses the decision (`rig_mismatch`), naming both baselines.
+chapter's rig.* numbers (core/rig_pose.py). A configured rig.baseline_m (> 0) must agree with
+the calibration: with `left_calibration_file` and `right_calibration_file` it is checked at
+start and a mismatch ends the node; in any case, the first stereo/matches whose calibration
+contradicts it is logged once as an ERROR with both numbers, /diagnostics turns ERROR, and every
+decision from then on is refused as `rig_mismatch` with that reason (rig.baseline_m is
+read-only: the node must be restarted with the right value).
 """
 
 from __future__ import annotations
@@ -48,13 +52,19 @@ from stereo_fuzzy_perception.core.best_point.point_selectors import (
     SelectorError,
     load_selector_files,
 )
+from stereo_fuzzy_perception.core.camera_calibration_file import (
+    CalibrationFileError,
+    read_calibration_yaml,
+)
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.rig_pose import (
+    BASELINE_TOLERANCE_M,
     LEFT_CAMERA_FRAME,
     RIG_PARAMETERS,
     CameraPoseSource,
     RigPoseError,
     Transform,
+    check_baseline,
 )
 from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
 from stereo_fuzzy_perception.nodes import qos
@@ -114,8 +124,40 @@ def build_pose_source(settings: FuzzyBestPointSettings) -> CameraPoseSource:
                                           settings.world.world_frame)
 
 
+def calibration_files_problem(settings: FuzzyBestPointSettings) -> str | None:
+    """Return why the calibration files are unusable or contradict rig.baseline_m, or None.
+
+    Nothing is checked when neither file is given (the first stereo/matches is checked then).
+    """
+    left_file, right_file = settings.left_calibration_file, settings.right_calibration_file
+    if not left_file and not right_file:
+        return None
+    if not left_file or not right_file:
+        return ('left_calibration_file and right_calibration_file go together; got '
+                f'{left_file!r} and {right_file!r}')
+    calibrations = []
+    for name, path in (('left_calibration_file', left_file),
+                       ('right_calibration_file', right_file)):
+        try:
+            calibrations.append(read_calibration_yaml(path))
+        except CalibrationFileError as error:
+            return f'{name}: {error}'
+    calibration = StereoCalibration(*calibrations)
+    problem = calibration.problem()
+    if problem:
+        return f'left_calibration_file={left_file!r}, right_calibration_file={right_file!r}: ' \
+            f'{problem}'
+    if settings.rig.baseline_m > 0.0:
+        try:
+            check_baseline(settings.rig.baseline_m, calibration)
+        except RigPoseError as error:
+            return (f'{error} (calibration {right_file}; allowed: 0, or within '
+                    f'{BASELINE_TOLERANCE_M} m of the calibration)')
+    return None
+
+
 def chooser_problem(settings: FuzzyBestPointSettings) -> str | None:
-    """Return why the settings cannot work (a bad rule base or pose file), or None.
+    """Return why the settings cannot work (a bad rule base, pose or calibration file), or None.
 
     Both selector files are loaded and checked whichever selector is active, so a bad
     network_file is refused when it is set, not when neural_network is selected later. Never
@@ -131,11 +173,11 @@ def chooser_problem(settings: FuzzyBestPointSettings) -> str | None:
                 return f'{name}={rule_base_file or weights_file!r}: {error}'
         build_chooser(settings)
         build_pose_source(settings)
+        return calibration_files_problem(settings)
     except (SelectorError, RigPoseError) as error:
         return str(error)
     except Exception as error:  # a loader bug must refuse the change, not kill the node
         return f'cannot check the settings ({type(error).__name__}: {error})'
-    return None
 
 
 class FuzzyBestPointNode(Node):
@@ -150,6 +192,8 @@ class FuzzyBestPointNode(Node):
         self._pose_source = build_pose_source(self.settings)
         self._static_transforms: dict[str, Transform] = {}
         self._pose_origin = ''
+        # Set by the first stereo/matches whose calibration contradicts rig.baseline_m.
+        self.rig_mismatch = ''
         # Compile (first run) or load the numba point kernel now, not on the first input.
         started = time.monotonic()
         correlation_area.warm_up()
@@ -206,6 +250,11 @@ class FuzzyBestPointNode(Node):
                                          reason=str(error))
             self._publish(decision, header, msg.header.frame_id)
             return
+        mismatch = self._baseline_mismatch(StereoCalibration(left, right))
+        if mismatch:
+            self._publish(BestPointDecision(chooser.selector, status=RIG_MISMATCH,
+                                            reason=mismatch), header, msg.header.frame_id)
+            return
         try:
             chooser = dataclasses.replace(chooser, world_from_camera=self._world_from_camera(
                 StereoCalibration(left, right), msg.header.frame_id or LEFT_CAMERA_FRAME))
@@ -230,6 +279,23 @@ class FuzzyBestPointNode(Node):
                 'file (rig_pose_file, written by rig_calibration) or publish it on /tf_static',
                 throttle_duration_sec=HINT_THROTTLE_S)
         self._publish(decision, header, msg.header.frame_id)
+
+    def _baseline_mismatch(self, calibration: StereoCalibration) -> str:
+        """Return why every decision is refused (rig.baseline_m vs calibration), or ''.
+
+        The first contradiction is kept for the node's life and logged once.
+        """
+        configured = self.settings.rig.baseline_m
+        if not self.rig_mismatch and configured > 0.0:
+            try:
+                check_baseline(configured, calibration)
+            except RigPoseError as error:
+                self.rig_mismatch = str(error)
+                self.get_logger().error(
+                    f'{error}; refusing every decision as {RIG_MISMATCH} until the node is '
+                    'restarted with a rig.baseline_m that agrees (allowed: 0, or within '
+                    f'{BASELINE_TOLERANCE_M} m of the calibration)')
+        return self.rig_mismatch
 
     def _on_tf_static(self, msg: TFMessage) -> None:
         transforms = tf_message_to_transforms(msg)
@@ -278,7 +344,10 @@ class FuzzyBestPointNode(Node):
         refused = {reason: self.decisions[reason] for reason in REFUSAL_REASONS}
         status = DiagnosticStatus(name=f'{self.get_name()}: best point',
                                   hardware_id=self.get_name())
-        if made == 0 and not any(refused.values()):
+        if self.rig_mismatch:
+            status.level = DiagnosticStatus.ERROR
+            status.message = f'{RIG_MISMATCH}: {self.rig_mismatch}'
+        elif made == 0 and not any(refused.values()):
             status.level, status.message = DiagnosticStatus.OK, 'waiting for input'
         elif self._last_status == STATUS_OK:
             status.level, status.message = DiagnosticStatus.OK, 'choosing best points'
