@@ -27,7 +27,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from chain.processes import REPO_ROOT, ProcessGroup, executable_path, process_set, wait_for
+from chain.processes import (
+    REPO_ROOT,
+    ProcessGroup,
+    camera_remaps,
+    executable_path,
+    process_set,
+    wait_for,
+)
 from chain.regression import (
     DEFAULT_TOLERANCE_MM,
     compare,
@@ -146,7 +153,8 @@ class DemoRun:
         """Play the demo bag once every topic it publishes has a subscriber."""
         self.group.start('bag_play', [executable_path('stereo_fuzzy_perception', 'bag'), 'play',
                                       self.bag, '--wait-for-subscribers',
-                                      '--rate', str(self.rate)], one_shot=True)
+                                      '--rate', str(self.rate), '--remap', *camera_remaps()],
+                         one_shot=True)
 
     # --- the run -----------------------------------------------------------------------------
 

@@ -57,7 +57,7 @@ def test_camera_topics_carry_one_stamp_and_stereo_sync_pairs_them(ros_context, t
         kind = Image if topic.endswith('image_raw') else CameraInfo
         probe.create_subscription(kind, topic, received[topic].append, qos.CAMERA_INPUT)
     pairs: list = []
-    probe.create_subscription(StereoPair, 'stereo/pair', pairs.append, qos.RESULTS)
+    probe.create_subscription(StereoPair, 'pair', pairs.append, qos.RESULTS)
     sync = StereoSyncNode(context=ros_context)
     camera = StereoCameraNode(context=ros_context, parameter_overrides=[
         Parameter(name, value=value) for name, value in

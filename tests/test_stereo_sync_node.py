@@ -105,7 +105,7 @@ class SyncHarness:
         ]
         self.pairs: list[StereoPair] = []
         self.statuses: list = []
-        self.feeder.create_subscription(StereoPair, 'stereo/pair', self.pairs.append, qos.RESULTS)
+        self.feeder.create_subscription(StereoPair, 'pair', self.pairs.append, qos.RESULTS)
         self.feeder.create_subscription(
             DiagnosticArray, '/diagnostics',
             lambda array: self.statuses.extend(
@@ -117,7 +117,7 @@ class SyncHarness:
             self.wait(lambda p=publisher: p.get_subscription_count() > 0,
                       f'stereo_sync_node subscribed to {publisher.topic_name}')
         self.wait(lambda: self.node.pair_publisher.get_subscription_count() > 0,
-                  'the test subscribed to stereo/pair')
+                  'the test subscribed to pair')
         self.wait(lambda: self.node.diagnostics_publisher.get_subscription_count() > 0,
                   'the test subscribed to /diagnostics')
 

@@ -31,14 +31,14 @@ class SyncTarget(HostileProbe):
         from stereo_fuzzy_msgs.msg import StereoPair
 
         self.pairs: list = []
-        self.node.create_subscription(StereoPair, 'stereo/pair', self.pairs.append, qos.RESULTS)
+        self.node.create_subscription(StereoPair, 'pair', self.pairs.append, qos.RESULTS)
         self.publishers = {
             topic: self.node.create_publisher(Image if 'image' in topic else CameraInfo, topic,
                                               qos.RESULTS)
             for topic in INPUTS}
         self.wait(lambda: all(publisher.get_subscription_count() > 0
                               for publisher in self.publishers.values())
-                  and self.node.count_publishers('stereo/pair') > 0,
+                  and self.node.count_publishers('pair') > 0,
                   f'{NODE} and the probe to discover each other')
         self.wait(lambda: self.diagnostic_value('pairs in') is not None, 'a first report')
 

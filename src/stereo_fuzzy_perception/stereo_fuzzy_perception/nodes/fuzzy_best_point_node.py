@@ -1,6 +1,7 @@
 """Choose the best point of the correlation area with the fuzzy system (or a baseline).
 
-Subscribes `stereo/matches` (StereoMatches) and `/tf_static`, publishes `best_point`
+Subscribes `matches` (StereoMatches; the chain remaps it to `stereo/matches`) and
+`/tf_static`, publishes `best_point`
 (PointStamped in `world`, stamped with the pair's stamp, only when a point was chosen),
 `best_point/decision` (FuzzyDecision, for every input, with the reason when no point was
 chosen), `best_point/markers` (MarkerArray in `world`: the correlation area, border points,
@@ -13,7 +14,7 @@ The matches' frame is placed in `world` by, in this order: the pose file `rig_po
 transforms on /tf_static (a replayed bag that recorded them needs no rig parameters), or the
 chapter's rig.* numbers (core/rig_pose.py). A configured rig.baseline_m (> 0) must agree with
 the calibration: with `left_calibration_file` and `right_calibration_file` it is checked at
-start and a mismatch ends the node; in any case, the first stereo/matches whose calibration
+start and a mismatch ends the node; in any case, the first matches message whose calibration
 contradicts it is logged once as an ERROR with both numbers, /diagnostics turns ERROR, and every
 decision from then on is refused as `rig_mismatch` with that reason (rig.baseline_m is
 read-only: the node must be restarted with the right value).
@@ -67,7 +68,7 @@ from stereo_fuzzy_perception.core.rig_pose import (
     check_baseline,
 )
 from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
-from stereo_fuzzy_perception.nodes import qos
+from stereo_fuzzy_perception.nodes import qos, topic_names
 from stereo_fuzzy_perception.nodes.conversions import (
     best_point_to_point_stamped,
     camera_info_to_calibration,
@@ -79,12 +80,6 @@ from stereo_fuzzy_perception.nodes.conversions import (
 from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import FuzzyBestPointSettings
 from tf2_msgs.msg import TFMessage
 
-MATCHES_TOPIC = 'stereo/matches'
-BEST_POINT_TOPIC = 'best_point'
-DECISION_TOPIC = 'best_point/decision'
-MARKERS_TOPIC = 'best_point/markers'
-DIAGNOSTICS_TOPIC = '/diagnostics'
-TF_STATIC_TOPIC = '/tf_static'
 MALFORMED_INPUT = 'malformed_input'
 RIG_MISMATCH = 'rig_mismatch'
 INTERNAL_ERROR = 'internal_error'
@@ -127,7 +122,7 @@ def build_pose_source(settings: FuzzyBestPointSettings) -> CameraPoseSource:
 def calibration_files_problem(settings: FuzzyBestPointSettings) -> str | None:
     """Return why the calibration files are unusable or contradict rig.baseline_m, or None.
 
-    Nothing is checked when neither file is given (the first stereo/matches is checked then).
+    Nothing is checked when neither file is given (the first matches message is checked then).
     """
     left_file, right_file = settings.left_calibration_file, settings.right_calibration_file
     if not left_file and not right_file:
@@ -192,7 +187,7 @@ class FuzzyBestPointNode(Node):
         self._pose_source = build_pose_source(self.settings)
         self._static_transforms: dict[str, Transform] = {}
         self._pose_origin = ''
-        # Set by the first stereo/matches whose calibration contradicts rig.baseline_m.
+        # Set by the first matches message whose calibration contradicts rig.baseline_m.
         self.rig_mismatch = ''
         # Compile (first run) or load the numba point kernel now, not on the first input.
         started = time.monotonic()
@@ -204,17 +199,21 @@ class FuzzyBestPointNode(Node):
         self._last_status = 'waiting for input'
         self.matches_sequence = SequenceGaps()
         self.best_point_publisher = self.create_publisher(
-            PointStamped, BEST_POINT_TOPIC, qos.RESULTS)
+            PointStamped, topic_names.BEST_POINT, qos.RESULTS)
         self.decision_publisher = self.create_publisher(
-            FuzzyDecision, DECISION_TOPIC, qos.RESULTS)
-        self.markers_publisher = self.create_publisher(MarkerArray, MARKERS_TOPIC, qos.RESULTS)
+            FuzzyDecision, topic_names.DECISION, qos.RESULTS)
+        self.markers_publisher = self.create_publisher(MarkerArray, topic_names.MARKERS,
+                                                       qos.RESULTS)
         self.diagnostics_publisher = self.create_publisher(
-            DiagnosticArray, DIAGNOSTICS_TOPIC, qos.DIAGNOSTICS)
-        self.create_subscription(StereoMatches, MATCHES_TOPIC, self._on_matches, qos.RESULTS)
-        self.create_subscription(TFMessage, TF_STATIC_TOPIC, self._on_tf_static, qos.TF_STATIC)
+            DiagnosticArray, topic_names.DIAGNOSTICS, qos.DIAGNOSTICS)
+        self.matches_subscription = self.create_subscription(
+            StereoMatches, topic_names.MATCHES, self._on_matches, qos.RESULTS)
+        self.create_subscription(TFMessage, topic_names.TF_STATIC, self._on_tf_static,
+                                 qos.TF_STATIC)
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(
-            f'choosing best points with {self._describe()} from {MATCHES_TOPIC}')
+            f'choosing best points with {self._describe()} from '
+            f'{self.matches_subscription.topic_name}')
 
     def _describe(self) -> str:
         chooser = self._chooser
@@ -315,7 +314,7 @@ class FuzzyBestPointNode(Node):
         if not source.transforms:
             with self._lock:
                 static = list(self._static_transforms.values())
-            from_tf = source.with_transforms(static, TF_STATIC_TOPIC)
+            from_tf = source.with_transforms(static, topic_names.TF_STATIC)
             if static and from_tf.connects(camera_frame):
                 source = from_tf
         if source.origin != self._pose_origin:
@@ -360,7 +359,7 @@ class FuzzyBestPointNode(Node):
                                             ('decisions refused', sum(refused.values()))]
         values += [(f'refused {reason}', count) for reason, count in refused.items()]
         with self._lock:
-            values += list(self.matches_sequence.report('stereo/matches').items())
+            values += list(self.matches_sequence.report(topic_names.MATCHES).items())
         status.values = [KeyValue(key=key, value=str(value)) for key, value in values]
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()

@@ -70,7 +70,7 @@ class FuzzyBestPointSettings:
     left_calibration_file: str = parameter(
         '', 'Left camera calibration YAML; with the right one, a rig.baseline_m > 0 that '
         'disagrees with them ends the node at start; empty = checked against the first '
-        'stereo/matches instead: one ERROR, /diagnostics ERROR, every decision refused as '
+        'matches message instead: one ERROR, /diagnostics ERROR, every decision refused as '
         'rig_mismatch', read_only=True)
     right_calibration_file: str = parameter(
         '', 'Right camera calibration YAML (its P gives the baseline)', read_only=True)

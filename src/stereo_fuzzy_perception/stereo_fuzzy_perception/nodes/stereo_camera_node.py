@@ -32,6 +32,7 @@ from stereo_fuzzy_perception.core.frame_capture import (
     DeviceCapture,
     convert_frame,
 )
+from stereo_fuzzy_perception.nodes import topic_names
 from stereo_fuzzy_perception.nodes.conversions import array_to_image, calibration_to_camera_info
 from stereo_fuzzy_perception.nodes.stereo_camera_parameters import StereoCameraSettings
 
@@ -74,9 +75,11 @@ class StereoCameraNode(Node):
         except CalibrationFileError as error:
             raise StartupError(str(error), self.get_name()) from None
         self.publishers_by_side = {
-            side: (self.create_publisher(Image, f'{side}/image_raw', CAMERA_OUTPUT),
-                   self.create_publisher(CameraInfo, f'{side}/camera_info', CAMERA_OUTPUT))
-            for side in ('left', 'right')}
+            side: (self.create_publisher(Image, image_topic, CAMERA_OUTPUT),
+                   self.create_publisher(CameraInfo, info_topic, CAMERA_OUTPUT))
+            for side, image_topic, info_topic in (
+                ('left', topic_names.LEFT_IMAGE, topic_names.LEFT_CAMERA_INFO),
+                ('right', topic_names.RIGHT_IMAGE, topic_names.RIGHT_CAMERA_INFO))}
         self.frames_published = 0
         self.capture_state = 'running'
         try:

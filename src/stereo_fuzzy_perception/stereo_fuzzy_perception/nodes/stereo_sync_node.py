@@ -7,7 +7,7 @@ four inputs with message_filters. The node only pairs topics: capturing devices 
 stereo_camera_node's job.
 
 Every set is checked (encoding, image sizes, calibration) before it is published on
-stereo/pair; a bad set is dropped, counted by reason and reported on /diagnostics.
+pair; a bad set is dropped, counted by reason and reported on /diagnostics.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from stereo_fuzzy_msgs.msg import StereoPair
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.image_encoding import SUPPORTED_ENCODINGS, ImageEncodingError
 from stereo_fuzzy_perception.core.stamp_pairing import Evicted, StampSynchronizer, seconds_to_ns
-from stereo_fuzzy_perception.nodes import qos
+from stereo_fuzzy_perception.nodes import qos, topic_names
 from stereo_fuzzy_perception.nodes.conversions import (
     camera_info_to_calibration,
     check_image_layout,
@@ -42,11 +42,9 @@ from stereo_fuzzy_perception.nodes.conversions import (
 from stereo_fuzzy_perception.nodes.stereo_sync_parameters import StereoSyncSettings
 
 # The four synchronised input streams, in StampSynchronizer stream order.
-INPUT_TOPICS = ('left/image_raw', 'left/camera_info', 'right/image_raw', 'right/camera_info')
+INPUT_TOPICS = topic_names.CAMERA_TOPICS
 LEFT_IMAGE, LEFT_INFO, RIGHT_IMAGE, RIGHT_INFO = range(4)
 INFO_OF_IMAGE = {LEFT_IMAGE: LEFT_INFO, RIGHT_IMAGE: RIGHT_INFO}
-PAIR_TOPIC = 'stereo/pair'
-DIAGNOSTICS_TOPIC = '/diagnostics'
 
 # Why a pair is dropped; every reason is reported on /diagnostics, zero or not.
 DROP_REASONS = (
@@ -190,9 +188,9 @@ class StereoSyncNode(Node):
         self.settings = declare_settings(self, StereoSyncSettings, apply=self._apply_settings)
         self.statistics = PairStatistics()
         self._reason_loggers: dict[str, RcutilsLogger] = {}
-        self.pair_publisher = self.create_publisher(StereoPair, PAIR_TOPIC, qos.RESULTS)
+        self.pair_publisher = self.create_publisher(StereoPair, topic_names.PAIR, qos.RESULTS)
         self.diagnostics_publisher = self.create_publisher(
-            DiagnosticArray, DIAGNOSTICS_TOPIC, qos.DIAGNOSTICS)
+            DiagnosticArray, topic_names.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self._start_topics()
 
