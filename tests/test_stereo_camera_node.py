@@ -6,36 +6,16 @@ test waits on messages, never on fixed sleeps.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import cv2
 import numpy as np
 import pytest
+from camera_captures import write_captures
 from ros_waiting import wait_until
 
 pytestmark = pytest.mark.ros
 
 TIMEOUT = 30.0
 WIDTH, HEIGHT = 160, 120
-
-
-def write_captures(directory: Path, frames: int) -> dict[str, object]:
-    from stereo_fuzzy_perception.core.camera_calibration_file import write_calibration_yaml
-    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
-    from stereo_fuzzy_perception.simulation.scene_model import SimulatedCamera
-    from stereo_fuzzy_perception.simulation.scene_renderer import stereo_calibration
-
-    for index in range(frames):
-        for side, offset in (('left', 0), ('right', 100)):
-            frame = np.full((HEIGHT, WIDTH, 3), offset + 10 * index, dtype=np.uint8)
-            assert cv2.imwrite(str(directory / f'{side}_{index:03d}.png'), frame)
-    calibration = stereo_calibration(SimulatedCamera(width=WIDTH, height=HEIGHT), StereoRig())
-    write_calibration_yaml(calibration.left, 'left', directory / 'left.yaml')
-    write_calibration_yaml(calibration.right, 'right', directory / 'right.yaml')
-    return {'left_device': str(directory / 'left_%03d.png'),
-            'right_device': str(directory / 'right_%03d.png'),
-            'left_calibration_file': str(directory / 'left.yaml'),
-            'right_calibration_file': str(directory / 'right.yaml')}
 
 
 def test_camera_topics_carry_one_stamp_and_stereo_sync_pairs_them(ros_context, tmp_path):

@@ -7,11 +7,8 @@ checked is what rcl resolved, not what the code meant. Waits on graph conditions
 
 from __future__ import annotations
 
-from pathlib import Path
-
-import cv2
-import numpy as np
 import pytest
+from camera_captures import write_captures
 from ros_fixtures import REPO_ROOT
 from ros_waiting import wait_until
 
@@ -20,24 +17,6 @@ pytestmark = pytest.mark.ros
 TIMEOUT = 120.0  # [s] generous: correlation_node subscribes only after its kernel warm-up
 GLOBAL_TOPICS = {'/diagnostics', '/tf_static', '/rosout', '/parameter_events'}
 PERCEPTION = REPO_ROOT / 'src' / 'stereo_fuzzy_perception'
-
-
-def write_captures(directory: Path) -> dict[str, str]:
-    """Write one frame per camera and both calibration files; return the camera's parameters."""
-    from stereo_fuzzy_perception.core.camera_calibration_file import write_calibration_yaml
-    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
-    from stereo_fuzzy_perception.simulation.scene_model import SimulatedCamera
-    from stereo_fuzzy_perception.simulation.scene_renderer import stereo_calibration
-
-    for side in ('left', 'right'):
-        assert cv2.imwrite(str(directory / f'{side}_000.png'), np.zeros((60, 80), np.uint8))
-    calibration = stereo_calibration(SimulatedCamera(width=80, height=60), StereoRig())
-    write_calibration_yaml(calibration.left, 'left', directory / 'left.yaml')
-    write_calibration_yaml(calibration.right, 'right', directory / 'right.yaml')
-    return {'left_device': str(directory / 'left_%03d.png'),
-            'right_device': str(directory / 'right_%03d.png'),
-            'left_calibration_file': str(directory / 'left.yaml'),
-            'right_calibration_file': str(directory / 'right.yaml')}
 
 
 class Graph:
@@ -111,7 +90,7 @@ def test_every_node_pushed_into_a_namespace_takes_all_its_topics_along(graph, ro
 
     namespace = '/stereo'
     camera = StereoCameraNode(context=ros_context, namespace=namespace,
-                              parameter_overrides=parameters(write_captures(tmp_path)))
+                              parameter_overrides=parameters(write_captures(tmp_path, frames=1)))
     sync = StereoSyncNode(context=ros_context, namespace=namespace)
     correlation = CorrelationNode(context=ros_context, namespace=namespace)
     fuzzy = FuzzyBestPointNode(context=ros_context, namespace=namespace)
