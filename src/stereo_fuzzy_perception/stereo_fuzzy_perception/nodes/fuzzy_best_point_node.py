@@ -140,8 +140,8 @@ def calibration_files_problem(settings: FuzzyBestPointSettings) -> str | None:
     calibration = StereoCalibration(*calibrations)
     problem = calibration.problem()
     if problem:
-        return f'left_calibration_file={left_file!r}, right_calibration_file={right_file!r}: ' \
-            f'{problem}'
+        return (f'left_calibration_file={left_file!r}, right_calibration_file={right_file!r}: '
+                f'{problem}')
     if settings.rig.baseline_m > 0.0:
         try:
             check_baseline(settings.rig.baseline_m, calibration)
