@@ -175,3 +175,40 @@ def test_unusable_calibration_file_refuses_to_start_naming_it(ros_context, tmp_p
                        match="right_calibration_file: .*distortion model 'fisheye62'"):
         StereoCameraNode(context=ros_context, parameter_overrides=[
             Parameter(name, value=value) for name, value in parameters.items()])
+
+
+def test_stereo_camera_set_publishes_in_the_namespace_with_a_plain_parameters_file(
+        ros_context, start_ros_process, tmp_path):
+    """`launch_chain stereo_camera params_file:=my_rig.yaml` as a process: the file's plain
+    `stereo_camera_node:` section reaches the node although it runs in /stereo."""
+    import rclpy
+    import yaml
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import Image
+    from stereo_fuzzy_perception.chain_description import ros_arguments
+    from stereo_fuzzy_perception.nodes import qos
+
+    from chain.processes import process_set, source_share_directory
+
+    parameters = {**write_captures(tmp_path, frames=2), 'loop': True, 'frame_rate_hz': 20.0}
+    params_file = tmp_path / 'my_rig.yaml'
+    params_file.write_text(yaml.safe_dump(
+        {'stereo_camera_node': {'ros__parameters': parameters}}))
+    processes = process_set('stereo_camera')
+    (process,) = processes.processes
+    arguments = ros_arguments(process, processes.argument_values(
+        {'params_file': str(params_file)}), source_share_directory)
+    camera = start_ros_process(process.package, process.executable, *arguments)
+    probe = rclpy.create_node('probe', context=ros_context)
+    images: list = []
+    probe.create_subscription(Image, '/stereo/left/image_raw', images.append, qos.CAMERA_INPUT)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(probe)
+    try:
+        wait_until(lambda: images or camera.process.poll() is not None, TIMEOUT,
+                   'an image on /stereo/left/image_raw', executor)
+        assert images, f'stereo_camera_node exited:\n{camera.output()}'
+        assert (images[-1].width, images[-1].height) == (WIDTH, HEIGHT)
+    finally:
+        executor.shutdown()
+        probe.destroy_node()
