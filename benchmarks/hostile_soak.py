@@ -118,8 +118,8 @@ def soak(options: argparse.Namespace, folder: Path) -> int:
         sync.node.create_subscription(PointStamped, 'best_point', on_point, qos.RESULTS)
         publishers = {topic: sync.node.create_publisher(
             Image if 'image' in topic else CameraInfo, topic, qos.RESULTS) for topic in INPUTS}
-        wait_for(lambda: sync.node.count_subscribers('stereo/pair') > 0
-                 and sync.node.count_subscribers('stereo/matches') > 0, 180.0,
+        wait_for(lambda: sync.node.count_subscribers('pair') > 0
+                 and sync.node.count_subscribers('matches') > 0, 180.0,
                  'the nodes to subscribe', lambda t: executor.spin_once(timeout_sec=t), group)
         changes = hostile_files(folder)
         silent_refusals = changes_made = 0
@@ -143,12 +143,12 @@ def soak(options: argparse.Namespace, folder: Path) -> int:
                                   ('stereo_sync_node', 'max_image_pixels', 4096 * 3072)):
             probes[node].set_parameter(name, value)
         fuzzy = probes['fuzzy_best_point_node']
-        before = count(fuzzy, 'stereo/matches received')
+        before = count(fuzzy, 'matches received')
         for topic, message in camera_set(stamp + 1, 0).items():  # the tail marker
             publishers[topic].publish(message)
         broken: list[str] = []
         try:
-            wait_for(lambda: count(fuzzy, 'stereo/matches received') > before
+            wait_for(lambda: count(fuzzy, 'matches received') > before
                      and not unaccounted(probes), 120.0, 'the counts to agree',
                      lambda t: executor.spin_once(timeout_sec=t), group)
         except (TimeoutError, RuntimeError) as error:
@@ -174,23 +174,23 @@ def unaccounted(probes: dict) -> list[str]:
     """Return the loss-accounting identities the latest reports break."""
     sync, correlation = probes['stereo_sync_node'], probes['correlation_node']
     fuzzy = probes['fuzzy_best_point_node']
-    received, matched = count(correlation, 'stereo/pair received'), count(
+    received, matched = count(correlation, 'pair received'), count(
         correlation, 'pairs processed')
-    arrived = count(fuzzy, 'stereo/matches received')
+    arrived = count(fuzzy, 'matches received')
     identities = {
         'sync in = out + dropped': (count(sync, 'pairs in'),
                                     count(sync, 'pairs out') + count(sync, 'pairs dropped')),
         'correlation received + lost = sync out':
-            (received + count(correlation, 'stereo/pair lost (sequence gaps)')
-             + count(correlation, 'stereo/pair sent before the first received'),
+            (received + count(correlation, 'pair lost (sequence gaps)')
+             + count(correlation, 'pair sent before the first received'),
              count(sync, 'pairs out')),
         'correlation processed + dropped + waiting = received':
             (matched + count(correlation, 'pairs waiting') + sum(
                 count(correlation, f'dropped {reason}') for reason in CORRELATION_DROPS),
              received),
         'fuzzy received + lost = correlation processed':
-            (arrived + count(fuzzy, 'stereo/matches lost (sequence gaps)')
-             + count(fuzzy, 'stereo/matches sent before the first received'), matched),
+            (arrived + count(fuzzy, 'matches lost (sequence gaps)')
+             + count(fuzzy, 'matches sent before the first received'), matched),
         'fuzzy decisions = received':
             (count(fuzzy, 'decisions made') + count(fuzzy, 'decisions refused'), arrived)}
     return [f'{name}: {a} != {b}' for name, (a, b) in identities.items() if a != b]
@@ -205,13 +205,13 @@ def report(probes: dict, sets: int, points: int, bad_points: list, silent_refusa
     print(f'  stereo_sync_node: received {count(sync, "received left/image_raw")} left images, '
           f'{count(sync, "pairs in")} sets in, {count(sync, "pairs out")} pairs out, '
           f'{count(sync, "pairs dropped")} dropped')
-    print(f'  correlation_node: {count(correlation, "stereo/pair received")} received, '
-          f'{count(correlation, "stereo/pair lost (sequence gaps)")} lost, '
+    print(f'  correlation_node: {count(correlation, "pair received")} received, '
+          f'{count(correlation, "pair lost (sequence gaps)")} lost, '
           f'{count(correlation, "pairs processed")} processed, '
           + ', '.join(f'{reason} {count(correlation, f"dropped {reason}")}'
                       for reason in CORRELATION_DROPS))
-    print(f'  fuzzy_best_point_node: {count(fuzzy, "stereo/matches received")} received, '
-          f'{count(fuzzy, "stereo/matches lost (sequence gaps)")} lost, '
+    print(f'  fuzzy_best_point_node: {count(fuzzy, "matches received")} received, '
+          f'{count(fuzzy, "matches lost (sequence gaps)")} lost, '
           f'{count(fuzzy, "decisions made")} made, {count(fuzzy, "decisions refused")} '
           f'refused; {points} best points published')
     print(f'node deaths: {len(deaths)} {deaths or ""}')

@@ -18,7 +18,7 @@ chain/demo_params.yaml) in a ROS domain of their own, and plays bags/demo_scenes
 Per node and run: "subscribed" is the time from starting its process until its input
 subscription is on the ROS graph (correlation_node and fuzzy_best_point_node subscribe only
 once their kernels are compiled or loaded); "first output" until this process receives the
-node's first output (stereo/pair, stereo/matches, best_point/decision; the driver's first
+node's first output (pair, matches, best_point/decision; the driver's first
 gantry/state with the controller connected). A node's first output also waits for the nodes
 upstream of it. The memory goal: flat within 5 % between pair 100 and pair 1,000. Pairs are
 counted as decisions received (pairs that went through the whole chain).
@@ -55,9 +55,9 @@ from chain.processes import ProcessGroup, executable_path, wait_for  # noqa: E40
 
 # node -> (the input topic it subscribes, the output topic this process watches)
 NODE_TOPICS = {
-    'stereo_sync_node': ('left/image_raw', 'stereo/pair'),
-    'correlation_node': ('stereo/pair', 'stereo/matches'),
-    'fuzzy_best_point_node': ('stereo/matches', 'best_point/decision'),
+    'stereo_sync_node': ('left/image_raw', 'pair'),
+    'correlation_node': ('pair', 'matches'),
+    'fuzzy_best_point_node': ('matches', 'best_point/decision'),
     'gantry_driver_node': ('best_point', 'gantry/state'),
 }
 GOAL_GROWTH_PCT = 5.0
@@ -98,10 +98,10 @@ class FootprintWatcher:
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         # Raw: only their arrival counts, so nothing is decoded.
-        self.node.create_subscription(StereoPair, 'stereo/pair',
+        self.node.create_subscription(StereoPair, 'pair',
                                       lambda _: self._first('stereo_sync_node'), reliable,
                                       raw=True)
-        self.node.create_subscription(StereoMatches, 'stereo/matches',
+        self.node.create_subscription(StereoMatches, 'matches',
                                       lambda _: self._first('correlation_node'), reliable,
                                       raw=True)
         self.node.create_subscription(FuzzyDecision, 'best_point/decision', self._on_decision,

@@ -420,8 +420,8 @@ def start_chain(group: ProcessGroup, args: argparse.Namespace, link: Path, sent_
 def chain_ready(watcher: Watcher) -> bool:
     """Return True once the correlation and fuzzy nodes subscribed (kernels compiled)."""
     node = watcher.node
-    return (node.count_subscribers('stereo/pair') > 0
-            and node.count_subscribers('stereo/matches') > 0
+    return (node.count_subscribers('pair') > 0
+            and node.count_subscribers('matches') > 0
             and node.count_subscribers('best_point') > 1)
 
 

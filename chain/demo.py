@@ -26,8 +26,22 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from stereo_fuzzy_perception.nodes.topic_names import (
+    BEST_POINT,
+    MATCHES,
+    PAIR,
+    STEREO_NAMESPACE,
+    in_namespace,
+)
 
-from chain.processes import REPO_ROOT, ProcessGroup, executable_path, process_set, wait_for
+from chain.processes import (
+    REPO_ROOT,
+    ProcessGroup,
+    camera_remaps,
+    executable_path,
+    process_set,
+    wait_for,
+)
 from chain.regression import (
     DEFAULT_TOLERANCE_MM,
     compare,
@@ -47,10 +61,11 @@ DEMO_TOLERANCE_MM = 8.0
 
 
 # (publishing node, topic, subscribing node): the links a scene travels from bag to gantry.
+# Topic names as the chain description's defaults resolve them.
 CHAIN_LINKS = (
-    ('stereo_sync_node', 'stereo/pair', 'correlation_node'),
-    ('correlation_node', 'stereo/matches', 'fuzzy_best_point_node'),
-    ('fuzzy_best_point_node', 'best_point', 'gantry_driver_node'),
+    ('stereo_sync_node', in_namespace(STEREO_NAMESPACE, PAIR), 'correlation_node'),
+    ('correlation_node', in_namespace(STEREO_NAMESPACE, MATCHES), 'fuzzy_best_point_node'),
+    ('fuzzy_best_point_node', in_namespace('', BEST_POINT), 'gantry_driver_node'),
 )
 
 
@@ -146,7 +161,8 @@ class DemoRun:
         """Play the demo bag once every topic it publishes has a subscriber."""
         self.group.start('bag_play', [executable_path('stereo_fuzzy_perception', 'bag'), 'play',
                                       self.bag, '--wait-for-subscribers',
-                                      '--rate', str(self.rate)], one_shot=True)
+                                      '--rate', str(self.rate), '--remap', *camera_remaps()],
+                         one_shot=True)
 
     # --- the run -----------------------------------------------------------------------------
 

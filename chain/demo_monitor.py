@@ -13,6 +13,13 @@ import numpy as np
 from geometry_msgs.msg import PointStamped
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from stereo_fuzzy_perception.nodes.topic_names import (
+    DISPARITY,
+    MATCHES,
+    PAIR,
+    STEREO_NAMESPACE,
+    in_namespace,
+)
 from stereo_msgs.msg import DisparityImage
 from visualization_msgs.msg import Marker
 
@@ -79,11 +86,13 @@ class DemoMonitor:
         node.create_subscription(GantryState, 'gantry/state', self._on_gantry_state,
                                  LATCHED_STATE)
         if keep_images:
-            node.create_subscription(StereoPair, 'stereo/pair', self._on_pair, RELIABLE)
-            node.create_subscription(StereoMatches, 'stereo/matches', self._on_matches,
-                                     RELIABLE)
-            node.create_subscription(DisparityImage, 'stereo/disparity', self._on_disparity,
-                                     RELIABLE)
+            # The chain's camera-rig topics, in the namespace its description puts them in.
+            node.create_subscription(StereoPair, in_namespace(STEREO_NAMESPACE, PAIR),
+                                     self._on_pair, RELIABLE)
+            node.create_subscription(StereoMatches, in_namespace(STEREO_NAMESPACE, MATCHES),
+                                     self._on_matches, RELIABLE)
+            node.create_subscription(DisparityImage, in_namespace(STEREO_NAMESPACE, DISPARITY),
+                                     self._on_disparity, RELIABLE)
 
     def scene(self, stamp_ns: int) -> SceneRecord:
         """Return the record of the scene with this stamp, creating it if new."""

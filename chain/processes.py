@@ -34,6 +34,11 @@ from stereo_fuzzy_perception.bringup.chain_description import (
     load_description,
     ros_arguments,
 )
+from stereo_fuzzy_perception.nodes.topic_names import (
+    CAMERA_TOPICS,
+    STEREO_NAMESPACE,
+    in_namespace,
+)
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 INSTALL_DIR = REPO_ROOT / 'ros2_ws' / 'install'
@@ -49,6 +54,15 @@ def executable_path(package: str, executable: str) -> Path:
 def source_share_directory(package: str) -> Path:
     """Return a package's folder in this repository: what colcon installs as its share/."""
     return REPO_ROOT / 'src' / package
+
+
+def camera_remaps(namespace: str = STEREO_NAMESPACE) -> list[str]:
+    """Return `bag play --remap` rules moving root camera topics into the camera namespace.
+
+    The committed bags hold /left/image_raw, /left/camera_info, /right/image_raw and
+    /right/camera_info; the chain description starts stereo_sync_node in `namespace`.
+    """
+    return [f'/{topic}:={in_namespace(namespace, topic)}' for topic in CAMERA_TOPICS]
 
 
 def process_set(name: str, description: Path = DESCRIPTION_PATH) -> ProcessSet:

@@ -87,8 +87,8 @@ class Harness:
         self.executor.add_node(self.probe)
         self.matches: list = []
         self.diagnostics: list = []
-        self.publisher = self.probe.create_publisher(StereoPair, 'stereo/pair', qos.RESULTS)
-        self.probe.create_subscription(StereoMatches, 'stereo/matches', self.matches.append,
+        self.publisher = self.probe.create_publisher(StereoPair, 'pair', qos.RESULTS)
+        self.probe.create_subscription(StereoMatches, 'matches', self.matches.append,
                                        qos.RESULTS)
         self.probe.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics.append,
                                        qos.DIAGNOSTICS)
@@ -210,7 +210,7 @@ def test_disparity_image_is_published_to_a_subscriber(harness):
 
     rig = harness(disparity_range=32)
     images: list = []
-    rig.probe.create_subscription(DisparityImage, 'stereo/disparity', images.append,
+    rig.probe.create_subscription(DisparityImage, 'disparity', images.append,
                                   qos.RESULTS)
     wait_until(lambda: rig.node.disparity_publisher.get_subscription_count() > 0, TIMEOUT,
                'the node to see the disparity subscriber', rig.executor)

@@ -69,7 +69,7 @@ class Harness:
                                        self.decisions.append, qos.RESULTS)
         self.probe.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics.append,
                                        qos.DIAGNOSTICS)
-        self.publisher = self.probe.create_publisher(StereoMatches, 'stereo/matches',
+        self.publisher = self.probe.create_publisher(StereoMatches, 'matches',
                                                      qos.RESULTS)
         wait_until(lambda: self.publisher.get_subscription_count() > 0
                    and self.node.decision_publisher.get_subscription_count() > 0

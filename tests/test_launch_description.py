@@ -78,6 +78,8 @@ def command_line_of(node: dict) -> list[str]:
     from stereo_fuzzy_perception.bringup.chain_description import format_parameter_value
 
     line = ['--ros-args', '-r', f'__node:={node["name"]}']
+    if node.get('namespace'):  # launch_ros pushes a relative namespace under the root
+        line += ['-r', f'__ns:=/{node["namespace"].lstrip("/")}']
     for entry in node['parameters']:
         if isinstance(entry, dict):
             line += [item for name, value in entry.items()
@@ -143,17 +145,54 @@ def test_chain_without_hardware_links_the_driver_to_the_simulator(monkeypatch):
     assert overrides['gantry_driver_node'] == {'port': '/tmp/gantry_link'}
 
 
-def test_ros_arguments_lay_out_files_overrides_and_remappings_in_order():
+def test_ros_arguments_lay_out_files_overrides_and_remappings_in_order(tmp_path):
+    import yaml
     from stereo_fuzzy_perception.bringup.chain_description import ProcessSpec, ros_arguments
 
+    (tmp_path / 'pkg' / 'config').mkdir(parents=True)
+    own = tmp_path / 'pkg' / 'config' / 'a.yaml'
+    own.write_text('corr:\n  ros__parameters: {rate: 1.0}\n')
+    given = tmp_path / 'p.yaml'
+    given.write_text('/**:\n  ros__parameters: {x: 1}\n')  # already any namespace: kept
     process = ProcessSpec('corr', 'pkg', 'correlation_node', ('config/a.yaml',),
                           (('port', '$(port)'), ('rate', 2.5), ('on', True)),
-                          (('stereo/pair', '/rig1/pair'),))
-    line = ros_arguments(process, {'port': '/dev/x', 'params_file': 'p.yaml'},
-                         lambda package: Path('/share') / package)
-    assert line == ['--ros-args', '-r', '__node:=corr', '--params-file',
-                    '/share/pkg/config/a.yaml', '--params-file', 'p.yaml', '-p', 'port:=/dev/x',
-                    '-p', 'rate:=2.5', '-p', 'on:=true', '-r', 'stereo/pair:=/rig1/pair']
+                          (('pair', '/rig1/pair'), ('matches', '$(namespace)/matches')),
+                          namespace='$(namespace)')
+    line = ros_arguments(process, {'port': '/dev/x', 'params_file': str(given),
+                                   'namespace': 'stereo'}, lambda package: tmp_path / package)
+    rewritten = Path(line[line.index('--params-file') + 1])
+    assert line == ['--ros-args', '-r', '__node:=corr', '-r', '__ns:=/stereo', '--params-file',
+                    str(rewritten), '--params-file', str(given), '-p', 'port:=/dev/x',
+                    '-p', 'rate:=2.5', '-p', 'on:=true', '-r', 'pair:=/rig1/pair',
+                    '-r', 'matches:=stereo/matches']
+    assert yaml.safe_load(rewritten.read_text()) == {
+        '/**/corr': {'ros__parameters': {'rate': 1.0}}}, 'a namespaced node reads corr:'
+    at_root = ros_arguments(process, {'port': '/dev/x', 'namespace': '/'},
+                            lambda package: tmp_path / package)
+    assert '__ns:=/' not in ' '.join(at_root) and 'matches:=/matches' in at_root, at_root
+    assert str(own) in at_root, 'a node at the root reads its files as they are'
+
+
+def test_default_chain_has_its_top_level_topics_and_no_doubled_prefix():
+    """With the default arguments the product's topics are /stereo/pair, /stereo/matches and
+    /best_point; with namespace:=/stereo the same, never /stereo/stereo/..."""
+    from stereo_fuzzy_perception.nodes import topic_names
+
+    from chain.processes import process_set
+
+    processes = {process.name: process for process in process_set('camera_rig').processes}
+    for given in ({}, {'namespace': '/stereo'}, {'namespace': 'stereo'}):
+        arguments = process_set('camera_rig').argument_values(given)
+        namespace = {name: process.resolved_namespace(arguments)
+                     for name, process in processes.items()}
+        remaps = dict(processes['fuzzy_best_point_node'].resolved_remappings(arguments))
+        pair = topic_names.in_namespace(namespace['stereo_sync_node'], topic_names.PAIR)
+        matches = topic_names.in_namespace(namespace['correlation_node'], topic_names.MATCHES)
+        assert (pair, matches) == ('/stereo/pair', '/stereo/matches'), given
+        assert topic_names.in_namespace(namespace['fuzzy_best_point_node'],
+                                        remaps[topic_names.MATCHES]) == matches, given
+        assert topic_names.in_namespace(namespace['fuzzy_best_point_node'],
+                                        topic_names.BEST_POINT) == '/best_point', given
 
 
 @pytest.mark.parametrize(('text', 'message'), [

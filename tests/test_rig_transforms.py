@@ -81,7 +81,7 @@ class Harness:
 
         self.probe.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics.append,
                                        qos.DIAGNOSTICS)
-        self.publisher = self.probe.create_publisher(StereoMatches, 'stereo/matches',
+        self.publisher = self.probe.create_publisher(StereoMatches, 'matches',
                                                      qos.RESULTS)
         wait_until(lambda: self.publisher.get_subscription_count() > 0
                    and self.node.decision_publisher.get_subscription_count() > 0
@@ -146,18 +146,65 @@ def test_bad_pose_file_ends_the_start_naming_the_file(harness, tmp_path):
         harness({'rig_pose_file': str(pose_file)})
 
 
-def test_baseline_that_disagrees_with_the_calibration_is_refused_with_both(harness):
+def test_baseline_contradicted_by_the_first_matches_refuses_every_decision(harness):
+    """Without calibration files: one ERROR naming both baselines, /diagnostics ERROR, and every
+    later decision refused with that reason, even one whose calibration would agree."""
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from rcl_interfaces.msg import Log
+    from rclpy.qos import QoSProfile
     from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 
     scene = make_scene(StereoRig())  # calibrated with a 0.06 m baseline
     run = harness({'rig.baseline_m': 0.10})
+    logs: list = []
+    run.probe.create_subscription(Log, '/rosout', logs.append, QoSProfile(depth=100))
     refused = run.send(matches_message(scene, stamp_sec=1), 1)
     assert not refused.has_best_point
     assert refused.status.startswith('rig_mismatch: rig.baseline_m=0.1000 m disagrees'), (
         refused.status)
     assert '0.0600 m' in refused.status
+    # A 0.10 m calibration agrees with rig.baseline_m, but the node already knows the rig
+    # contradicts its configuration: still refused, with the first reason.
+    agreeing_scene = make_scene(StereoRig(baseline_m=0.10))
+    later = run.send(matches_message(agreeing_scene, stamp_sec=2), 2)
+    assert later.status == refused.status
+    assert run.node.decisions['rig_mismatch'] == 2 and run.node.decisions['ok'] == 0
+    wait_until(lambda: any(status.level == DiagnosticStatus.ERROR for array in run.diagnostics
+                           for status in array.status), TIMEOUT, '/diagnostics at ERROR',
+               run.executor)
+    error = next(status for array in run.diagnostics for status in array.status
+                 if status.level == DiagnosticStatus.ERROR)
+    assert error.message.startswith('rig_mismatch: rig.baseline_m=0.1000 m')
+    assert '0.0600 m' in error.message
+    wait_until(lambda: any(log.name == 'fuzzy_best_point_node' and log.level == Log.ERROR
+                           for log in logs), TIMEOUT, 'the ERROR on /rosout', run.executor)
+    errors = [log.msg for log in logs if log.level == Log.ERROR]
+    assert len(errors) == 1, errors
+    assert '0.1000 m' in errors[0] and '0.0600 m' in errors[0] and 'allowed' in errors[0]
     agreeing = harness({'rig.baseline_m': 0.06})
-    assert agreeing.send(matches_message(scene, stamp_sec=2), 1).status == 'ok'
+    assert agreeing.send(matches_message(scene, stamp_sec=3), 1).status == 'ok'
+
+
+def test_baseline_contradicted_by_the_calibration_files_ends_the_start(harness, tmp_path):
+    from stereo_fuzzy_parameters.declaration import StartupError
+    from stereo_fuzzy_perception.core.camera_calibration_file import write_calibration_yaml
+    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+
+    scene = make_scene(StereoRig())  # calibrated with a 0.06 m baseline
+    write_calibration_yaml(scene.left, 'left', tmp_path / 'left.yaml')
+    write_calibration_yaml(scene.right, 'right', tmp_path / 'right.yaml')
+    files = {'left_calibration_file': str(tmp_path / 'left.yaml'),
+             'right_calibration_file': str(tmp_path / 'right.yaml')}
+    with pytest.raises(StartupError, match=r'rig.baseline_m=0.1000 m disagrees with the '
+                                           r"calibration's baseline 0.0600 m.*allowed: 0, or "
+                                           r'within') as refused:
+        harness({'rig.baseline_m': 0.10, **files})
+    assert 'right.yaml' in str(refused.value)
+    with pytest.raises(StartupError, match='left_calibration_file and right_calibration_file '
+                                           'go together'):
+        harness({'rig.baseline_m': 0.06, 'left_calibration_file': files['left_calibration_file']})
+    agreeing = harness({'rig.baseline_m': 0.06, **files})
+    assert agreeing.send(matches_message(scene, stamp_sec=1), 1).status == 'ok'
 
 
 def test_tf_static_places_the_camera_when_no_pose_file_is_given(harness):

@@ -12,6 +12,7 @@ TIMEOUT = 120.0  # [s] generous: the first start of a node imports numpy, OpenCV
 PACKAGE_OF = {'stereo_sync_node': 'stereo_fuzzy_perception',
               'correlation_node': 'stereo_fuzzy_perception',
               'fuzzy_best_point_node': 'stereo_fuzzy_perception',
+              'stereo_camera_node': 'stereo_fuzzy_perception',
               'gantry_driver_node': 'cartesian_3p_driver', 'fake_gantry': 'cartesian_3p_driver'}
 
 # (executable, --ros-args parameters, words the one line must hold: name, value, allowed)
@@ -27,11 +28,11 @@ BAD_STARTS = [
     ('fuzzy_best_point_node', ['workspace_max_m:=[0.4,0.3,-0.1]'],
      ['workspace_max_m', '-0.1', 'must exceed workspace_min_m']),
     ('stereo_sync_node', ['slop_s:=1'], ['slop_s', '1', 'floating-point number']),
-    ('stereo_sync_node', ['source:=devices'],
-     ['source=devices', 'left_device', 'right_calibration_file']),
-    ('stereo_sync_node', ['source:=devices', 'left_device:=0', 'right_device:=1',
-                          'left_calibration_file:=/nope.yaml',
-                          'right_calibration_file:=/nope.yaml'],
+    ('stereo_camera_node', ['frame_rate_hz:=15.0'],
+     ['stereo_camera_node needs', 'left_device', 'right_calibration_file']),
+    ('stereo_camera_node', ['left_device:=0', 'right_device:=1',
+                            'left_calibration_file:=/nope.yaml',
+                            'right_calibration_file:=/nope.yaml'],
      ['left_calibration_file', '/nope.yaml', 'calibration file']),
     ('gantry_driver_node', ['port:=/nonexistent', 'workspace_min_m:=[0.0,0.0,0.3]'],
      ['workspace_max_m', 'workspace_min_m=[0.0, 0.0, 0.3]', 'must exceed']),
@@ -66,6 +67,29 @@ def test_bad_start_up_value_ends_the_node_with_one_fatal_line(
     assert len(lines) == 1, f'one line expected, {len(lines)} printed:\n{output}'
     assert '[FATAL]' in lines[0] and f'[{executable}]' in lines[0], lines[0]
     for word in words:
+        assert word in lines[0], f'{word!r} missing from the start-up error: {lines[0]}'
+
+
+def test_baseline_the_calibration_files_contradict_ends_the_node_with_both_numbers(
+        start_ros_process, tmp_path):
+    from stereo_fuzzy_perception.core.camera_calibration_file import write_calibration_yaml
+    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+    from stereo_fuzzy_perception.simulation.scene_model import SimulatedCamera
+    from stereo_fuzzy_perception.simulation.scene_renderer import stereo_calibration
+
+    calibration = stereo_calibration(SimulatedCamera(width=160, height=120),
+                                     StereoRig(baseline_m=0.06))
+    write_calibration_yaml(calibration.left, 'left', tmp_path / 'left.yaml')
+    write_calibration_yaml(calibration.right, 'right', tmp_path / 'right.yaml')
+    process = start_ros_process(
+        'stereo_fuzzy_perception', 'fuzzy_best_point_node', '--ros-args',
+        '-p', 'rig.baseline_m:=0.1', '-p', f'left_calibration_file:={tmp_path / "left.yaml"}',
+        '-p', f'right_calibration_file:={tmp_path / "right.yaml"}')
+    process.process.wait(TIMEOUT)
+    lines = [line for line in process.output().splitlines() if line.strip()]
+    assert process.process.returncode != 0
+    assert len(lines) == 1, lines
+    for word in ('[FATAL]', 'rig.baseline_m=0.1000 m', 'baseline 0.0600 m', 'allowed'):
         assert word in lines[0], f'{word!r} missing from the start-up error: {lines[0]}'
 
 

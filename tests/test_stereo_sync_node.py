@@ -8,13 +8,8 @@ that checks a best-effort subscription hears a reliable publisher (it republishe
 
 from __future__ import annotations
 
-from pathlib import Path
-
-import cv2
 import numpy as np
 import pytest
-import yaml
-from ros_fixtures import REPO_ROOT
 from ros_waiting import wait_until
 
 pytestmark = pytest.mark.ros
@@ -27,7 +22,6 @@ except ImportError:  # the workspace is not sourced: conftest.py skips these tes
 WIDTH, HEIGHT = 32, 24
 FOCAL, BASELINE = 100.0, 0.1  # [px], [m]
 TIMEOUT = 30.0  # [s] generous: DDS discovery alone can take about 2 s
-PACKAGE_DIR = REPO_ROOT / 'src' / 'stereo_fuzzy_perception'
 
 
 def calibration(width: int = WIDTH, height: int = HEIGHT, tx: float = -FOCAL * BASELINE,
@@ -111,20 +105,19 @@ class SyncHarness:
         ]
         self.pairs: list[StereoPair] = []
         self.statuses: list = []
-        self.feeder.create_subscription(StereoPair, 'stereo/pair', self.pairs.append, qos.RESULTS)
+        self.feeder.create_subscription(StereoPair, 'pair', self.pairs.append, qos.RESULTS)
         self.feeder.create_subscription(
             DiagnosticArray, '/diagnostics',
             lambda array: self.statuses.extend(
                 status for status in array.status if status.name.startswith('stereo_sync_node')),
             qos.DIAGNOSTICS)
 
-    def wait_for_graph(self, inputs: bool = True) -> None:
-        if inputs:
-            for publisher in self.publishers:
-                self.wait(lambda p=publisher: p.get_subscription_count() > 0,
-                          f'stereo_sync_node subscribed to {publisher.topic_name}')
+    def wait_for_graph(self) -> None:
+        for publisher in self.publishers:
+            self.wait(lambda p=publisher: p.get_subscription_count() > 0,
+                      f'stereo_sync_node subscribed to {publisher.topic_name}')
         self.wait(lambda: self.node.pair_publisher.get_subscription_count() > 0,
-                  'the test subscribed to stereo/pair')
+                  'the test subscribed to pair')
         self.wait(lambda: self.node.diagnostics_publisher.get_subscription_count() > 0,
                   'the test subscribed to /diagnostics')
 
@@ -300,116 +293,3 @@ def test_images_without_camera_info_are_reported_missing(make_harness):
     harness.wait_for_diagnostic('unpaired right/image_raw', lambda value: value == '2',
                                 'to count the two right images evicted without a left partner')
     assert harness.diagnostic('dropped missing_camera_info') == '2'
-
-
-# --- devices source --------------------------------------------------------------------------
-
-
-def write_device_files(directory: Path, frames: int) -> dict[str, str]:
-    """Write left_%03d.png / right_%03d.png frames and two calibration files; return parameters."""
-    from stereo_fuzzy_perception.core.camera_calibration_file import write_calibration_yaml
-
-    for index in range(frames):
-        for side, offset in (('left', 0), ('right', 100)):
-            frame = np.full((HEIGHT, WIDTH, 3), offset + 10 * index, dtype=np.uint8)
-            frame[:, :, 2] = 7  # red channel: tells bgr8 from rgb8
-            assert cv2.imwrite(str(directory / f'{side}_{index:03d}.png'), frame)
-    write_calibration_yaml(calibration(), 'rig/left', directory / 'left.yaml')
-    write_calibration_yaml(calibration(), 'rig/right', directory / 'right.yaml')
-    return {
-        'source': 'devices',
-        'left_device': str(directory / 'left_%03d.png'),
-        'right_device': str(directory / 'right_%03d.png'),
-        'left_calibration_file': str(directory / 'left.yaml'),
-        'right_calibration_file': str(directory / 'right.yaml'),
-        'left_frame_id': 'rig_left_optical',
-        'right_frame_id': 'rig_right_optical',
-    }
-
-
-def test_devices_source_publishes_pairs_from_image_files(make_harness, tmp_path):
-    from stereo_fuzzy_perception.nodes.conversions import image_to_array
-
-    parameters = write_device_files(tmp_path, frames=3)
-    harness = make_harness(**parameters, loop=True, frame_rate_hz=50.0)
-    harness.wait_for_graph(inputs=False)
-    harness.wait(lambda: len(harness.pairs) >= 2, 'two StereoPairs from the image files')
-    pair = harness.pairs[-1]
-    assert pair.header.frame_id == 'rig_left_optical'
-    assert pair.right_image.header.frame_id == 'rig_right_optical'
-    assert pair.left_info.header.stamp == pair.header.stamp == pair.right_image.header.stamp
-    assert pair.left_image.encoding == 'bgr8'
-    left, right = image_to_array(pair.left_image), image_to_array(pair.right_image)
-    assert left.shape == (HEIGHT, WIDTH, 3)
-    index = int(left[0, 0, 0]) // 10
-    assert 0 <= index < 3 and int(left[0, 0, 0]) == 10 * index, 'a left frame as written'
-    assert int(right[0, 0, 0]) == 100 + 10 * index, 'the right frame of the same index'
-    assert int(left[0, 0, 2]) == 7
-    assert list(pair.right_info.p) == pytest.approx(list(calibration().P.ravel()))
-    assert (pair.left_info.width, pair.left_info.height) == (WIDTH, HEIGHT)
-    harness.wait(lambda: harness.statuses, '/diagnostics from the devices source')
-    assert harness.statuses[-1].hardware_id == (
-        f'{parameters["left_device"]} {parameters["right_device"]}'), (
-        'hardware_id names the two capture devices')
-
-
-def test_devices_source_stops_at_the_end_of_the_files(make_harness, tmp_path):
-    parameters = write_device_files(tmp_path, frames=3)
-    harness = make_harness(**parameters, loop=False, frame_rate_hz=50.0, encoding='mono8')
-    harness.wait_for_graph(inputs=False)
-    harness.wait_for_diagnostic('capture', lambda value: value == 'ended', 'to be ended')
-    assert harness.diagnostic('pairs in') == '3'
-    assert harness.diagnostic('pairs out') == '3'
-    assert harness.statuses[-1].message == 'capture ended'
-
-
-def test_devices_source_drops_frames_that_do_not_fit_the_calibration(make_harness, tmp_path):
-    from stereo_fuzzy_perception.core.camera_calibration_file import write_calibration_yaml
-
-    parameters = write_device_files(tmp_path, frames=2)
-    write_calibration_yaml(calibration(width=WIDTH * 2), 'rig/right', tmp_path / 'right.yaml')
-    harness = make_harness(**parameters)
-    harness.wait_for_graph(inputs=False)
-    harness.wait_for_diagnostic('dropped size_mismatch', lambda value: value == '2', 'to be 2')
-    assert harness.diagnostic('pairs out') == '0'
-
-
-def test_devices_source_without_files_refuses_to_start(ros_context):
-    from rclpy.parameter import Parameter
-    from stereo_fuzzy_parameters.declaration import StartupError
-    from stereo_fuzzy_perception.nodes.stereo_sync_node import StereoSyncNode
-
-    with pytest.raises(StartupError,
-                       match=r"source=devices needs left_device \(now ''\), right_device"):
-        StereoSyncNode(context=ros_context,
-                       parameter_overrides=[Parameter('source', value='devices')])
-
-
-def test_device_index_given_as_an_integer_is_accepted(ros_context, tmp_path):
-    from rclpy.parameter import Parameter
-    from stereo_fuzzy_parameters.declaration import StartupError
-    from stereo_fuzzy_perception.nodes.stereo_sync_node import StereoSyncNode
-
-    parameters = write_device_files(tmp_path, frames=1)
-    parameters.update(left_device=97, right_device=98)  # as `-p left_device:=97` gives it
-    # No camera 97 exists here: the node gets as far as opening it, which names the device.
-    with pytest.raises(StartupError, match="left_device='97': cannot open the capture"):
-        StereoSyncNode(context=ros_context, parameter_overrides=[
-            Parameter(name, value=value) for name, value in parameters.items()])
-
-
-# --- configuration ------------------------------------------------------------------------
-
-
-def test_devices_example_config_uses_declared_parameters_only():
-    from stereo_fuzzy_parameters.spec import settings_from_values, settings_values
-    from stereo_fuzzy_perception.nodes.stereo_sync_parameters import StereoSyncSettings
-
-    config = yaml.safe_load(
-        (PACKAGE_DIR / 'config' / 'stereo_sync_node_devices.yaml').read_text())
-    values = config['stereo_sync_node']['ros__parameters']
-    declared = settings_values(StereoSyncSettings())
-    assert set(values) <= set(declared), set(values) - set(declared)
-    settings = settings_from_values(StereoSyncSettings, {**declared, **values})
-    assert settings.source == 'devices'
-

@@ -28,8 +28,8 @@ def test_the_demo_waits_for_every_link_of_the_chain(ros_context):
     from chain.demo import CHAIN_LINKS, missing_links
     from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
 
-    types = {'stereo/pair': StereoPair, 'stereo/matches': StereoMatches,
-             'best_point': PointStamped}
+    types = {'/stereo/pair': StereoPair, '/stereo/matches': StereoMatches,
+             '/best_point': PointStamped}
     observer = rclpy.create_node('observer', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     nodes = {name: rclpy.create_node(name, context=ros_context)
@@ -43,7 +43,7 @@ def test_the_demo_waits_for_every_link_of_the_chain(ros_context):
         wait_until(lambda: len(missing_links(observer)) == 1, 30.0,
                    'the graph to show all but the last link', executor)
         assert missing_links(observer) == [
-            'fuzzy_best_point_node -> best_point -> gantry_driver_node']
+            'fuzzy_best_point_node -> /best_point -> gantry_driver_node']
 
         nodes['gantry_driver_node'].create_subscription(PointStamped, 'best_point',
                                                         lambda _: None, 10)

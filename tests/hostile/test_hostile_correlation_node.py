@@ -30,12 +30,12 @@ class CorrelationTarget(HostileProbe):
         from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
 
         self.matches: list = []
-        self.publisher = self.node.create_publisher(StereoPair, 'stereo/pair', qos.RESULTS)
-        self.node.create_subscription(StereoMatches, 'stereo/matches', self.matches.append,
+        self.publisher = self.node.create_publisher(StereoPair, 'pair', qos.RESULTS)
+        self.node.create_subscription(StereoMatches, 'matches', self.matches.append,
                                       qos.RESULTS)
         self.wait(lambda: self.publisher.get_subscription_count() > 0,
-                  f'{NODE} to subscribe stereo/pair (numba warm-up)', timeout=180.0)
-        self.wait(lambda: self.node.count_publishers('stereo/matches') > 0,
+                  f'{NODE} to subscribe pair (numba warm-up)', timeout=180.0)
+        self.wait(lambda: self.node.count_publishers('matches') > 0,
                   'the matches publisher')
 
     def counter(self, key: str) -> int:
@@ -59,7 +59,7 @@ def test_clearing_max_rate_frees_a_waiting_pair_at_once(target):
     target.publisher.publish(stereo_pair(1, sequence=1))
     target.wait(lambda: len(target.matches) == 1, 'the first pair (no wait before it)')
     target.publisher.publish(stereo_pair(2, sequence=2))
-    target.wait_diagnostic('stereo/pair received', 2)
+    target.wait_diagnostic('pair received', 2)
     assert len(target.matches) == 1  # the second waits for the 1000 s period of 0.001 Hz
     assert target.set_parameter('max_rate_hz', 0.0) == (True, '')
     # Before the fix it stayed blocked until the old deadline, 1000 s later.
@@ -88,14 +88,14 @@ def test_every_pair_is_accounted_for_and_gaps_are_counted(target):
     sequences = [1, 2, 3, 7, 8, 12]
     for sequence in sequences:
         target.publisher.publish(stereo_pair(sequence, sequence=sequence))
-    target.wait_diagnostic('stereo/pair lost (sequence gaps)', 6)
+    target.wait_diagnostic('pair lost (sequence gaps)', 6)
     target.wait(lambda: target.counter('pairs processed')
                 + sum(target.counter(f'dropped {reason}') for reason in (
                     'superseded', 'image_too_large', 'calibration', 'size_mismatch',
                     'encoding', 'matcher_input', 'opencv', 'internal'))
                 + target.counter('pairs waiting') == len(sequences),
                 'received = processed + dropped + waiting')
-    assert target.counter('stereo/pair received') == len(sequences)
+    assert target.counter('pair received') == len(sequences)
     target.wait(lambda: len(target.matches) == target.counter('pairs processed'),
                 'every processed pair to arrive as matches')
     numbers = [m.sequence for m in target.matches]
@@ -123,7 +123,7 @@ def test_random_parameter_values_are_refused_with_a_reason_or_usable(target, nam
     if successful:  # accepted: the next pair must still be processed or dropped by reason
         target.set_parameter('max_rate_hz', 0.0)
         target.set_parameter('max_image_pixels', 4096 * 3072)
-        before = target.counter('stereo/pair received')
+        before = target.counter('pair received')
         target.publisher.publish(stereo_pair(before + 1))
-        target.wait_diagnostic('stereo/pair received', before + 1)
+        target.wait_diagnostic('pair received', before + 1)
         target.wait(lambda: target.counter('pairs waiting') == 0, 'the pair to be handled')

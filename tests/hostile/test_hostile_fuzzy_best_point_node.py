@@ -62,10 +62,10 @@ class FuzzyTarget(HostileProbe):
                                       qos.RESULTS)
         self.node.create_subscription(FuzzyDecision, 'best_point/decision',
                                       self.decisions.append, qos.RESULTS)
-        self.publisher = self.node.create_publisher(StereoMatches, 'stereo/matches',
+        self.publisher = self.node.create_publisher(StereoMatches, 'matches',
                                                     qos.RESULTS)
         self.wait(lambda: self.publisher.get_subscription_count() > 0,
-                  f'{NODE} to subscribe stereo/matches (numba warm-up)', timeout=120.0)
+                  f'{NODE} to subscribe matches (numba warm-up)', timeout=120.0)
         self.wait(lambda: self.node.count_publishers('best_point/decision') > 0,
                   'the decision publisher')
 
@@ -217,10 +217,10 @@ def test_inconsistent_cloud_layouts_are_malformed_input_not_a_wrong_point(target
 def test_gaps_in_the_matches_sequence_are_counted(target):
     for sequence in (1, 2, 5, 6, 10):
         target.decide(matches_message(sequence))
-    target.wait_diagnostic('stereo/matches lost (sequence gaps)', 5)
-    target.wait_diagnostic('stereo/matches received', 5)
+    target.wait_diagnostic('matches lost (sequence gaps)', 5)
+    target.wait_diagnostic('matches received', 5)
     target.decide(matches_message(1))  # a restarted publisher: no loss, one restart
-    target.wait_diagnostic('stereo/matches sequence restarts', 1)
+    target.wait_diagnostic('matches sequence restarts', 1)
 
 
 PARAMETER_NAMES = ['selector', 'rule_base_file', 'network_file', 'workspace_min_m',

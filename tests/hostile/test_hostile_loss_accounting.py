@@ -34,22 +34,22 @@ def unaccounted(sync: HostileProbe, correlation: HostileProbe, fuzzy: HostilePro
     `pairs_sent`: StereoPairs the test published itself (None: the sync node's `pairs out`).
     """
     published = count(sync, 'pairs out') if pairs_sent is None else pairs_sent
-    received = count(correlation, 'stereo/pair received')
+    received = count(correlation, 'pair received')
     matched = count(correlation, 'pairs processed')
-    arrived = count(fuzzy, 'stereo/matches received')
+    arrived = count(fuzzy, 'matches received')
     identities = {
         'sync: pairs in = out + dropped':
             (count(sync, 'pairs in'), count(sync, 'pairs out') + count(sync, 'pairs dropped')),
         'correlation: received + lost = sync out':
-            (received + count(correlation, 'stereo/pair lost (sequence gaps)')
-             + count(correlation, 'stereo/pair sent before the first received'), published),
+            (received + count(correlation, 'pair lost (sequence gaps)')
+             + count(correlation, 'pair sent before the first received'), published),
         'correlation: processed + dropped + waiting = received':
             (matched + count(correlation, 'pairs waiting') + sum(
                 count(correlation, f'dropped {reason}') for reason in CORRELATION_DROPS),
              received),
         'fuzzy: received + lost = correlation processed':
-            (arrived + count(fuzzy, 'stereo/matches lost (sequence gaps)')
-             + count(fuzzy, 'stereo/matches sent before the first received'), matched),
+            (arrived + count(fuzzy, 'matches lost (sequence gaps)')
+             + count(fuzzy, 'matches sent before the first received'), matched),
         'fuzzy: made + refused = received':
             (count(fuzzy, 'decisions made') + count(fuzzy, 'decisions refused'), arrived),
     }
@@ -82,10 +82,10 @@ def test_every_pair_and_match_is_delivered_or_counted_lost(ros_context, start_ro
     try:
         publishers = {topic: sync.node.create_publisher(
             Image if 'image' in topic else CameraInfo, topic, qos.RESULTS) for topic in INPUTS}
-        pair_publisher = sync.node.create_publisher(StereoPair, 'stereo/pair', qos.RESULTS)
+        pair_publisher = sync.node.create_publisher(StereoPair, 'pair', qos.RESULTS)
         sync.wait(lambda: all(p.get_subscription_count() > 0 for p in publishers.values())
-                  and sync.node.count_subscribers('stereo/pair') > 0
-                  and sync.node.count_subscribers('stereo/matches') > 0,
+                  and sync.node.count_subscribers('pair') > 0
+                  and sync.node.count_subscribers('matches') > 0,
                   'the three nodes to subscribe (numba warm-up)', timeout=180.0)
         pairs_sent = None if source == 'camera_sets' else BURST + 1
 
@@ -110,9 +110,9 @@ def test_every_pair_and_match_is_delivered_or_counted_lost(ros_context, start_ro
                                  f'{correlation.diagnostics}; {fuzzy.diagnostics}') from None
         # One last message, slowly: it carries the next sequence numbers, so a loss at the end
         # of the burst shows as a gap before it.
-        arrived_before = count(fuzzy, 'stereo/matches received')
+        arrived_before = count(fuzzy, 'matches received')
         send(BURST + 1)
-        sync.wait(lambda: count(fuzzy, 'stereo/matches received') > arrived_before,
+        sync.wait(lambda: count(fuzzy, 'matches received') > arrived_before,
                   'the last message to reach the fuzzy node', timeout=120.0)
         try:
             sync.wait(lambda: not unaccounted(sync, correlation, fuzzy, pairs_sent),

@@ -39,9 +39,9 @@ def bad_starts(tmp_path):
          ['rule_base_file', 'a character device']),
         ('fuzzy_best_point_node', [f'network_file:={npy}'],
          ['network_file', 'not an .npz archive']),
-        ('stereo_sync_node', ['source:=devices', 'left_device:=0', 'right_device:=1',
-                              f'left_calibration_file:={good}',
-                              f'right_calibration_file:={unknown_model}'],
+        ('stereo_camera_node', ['left_device:=0', 'right_device:=1',
+                                f'left_calibration_file:={good}',
+                                f'right_calibration_file:={unknown_model}'],
          ['right_calibration_file', "distortion model 'fisheye62'"]),
     ]
 

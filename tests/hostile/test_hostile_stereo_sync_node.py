@@ -31,14 +31,14 @@ class SyncTarget(HostileProbe):
         from stereo_fuzzy_msgs.msg import StereoPair
 
         self.pairs: list = []
-        self.node.create_subscription(StereoPair, 'stereo/pair', self.pairs.append, qos.RESULTS)
+        self.node.create_subscription(StereoPair, 'pair', self.pairs.append, qos.RESULTS)
         self.publishers = {
             topic: self.node.create_publisher(Image if 'image' in topic else CameraInfo, topic,
                                               qos.RESULTS)
             for topic in INPUTS}
         self.wait(lambda: all(publisher.get_subscription_count() > 0
                               for publisher in self.publishers.values())
-                  and self.node.count_publishers('stereo/pair') > 0,
+                  and self.node.count_publishers('pair') > 0,
                   f'{NODE} and the probe to discover each other')
         self.wait(lambda: self.diagnostic_value('pairs in') is not None, 'a first report')
 
@@ -89,9 +89,9 @@ def test_images_beyond_the_size_limits_are_dropped_before_decoding(target):
     target.wait_diagnostic('pairs out', 1)
 
 
-PARAMETER_NAMES = ['source', 'slop_s', 'queue_size', 'input_reliability', 'left_device',
-                   'left_calibration_file', 'frame_rate_hz', 'encoding', 'loop',
-                   'diagnostics_period_s', 'drop_warn_window_s', 'max_image_pixels', 'unknown']
+# 'source' and 'left_device' were parameters once (the node captured devices): now undeclared.
+PARAMETER_NAMES = ['slop_s', 'queue_size', 'input_reliability', 'diagnostics_period_s',
+                   'drop_warn_window_s', 'max_image_pixels', 'source', 'left_device', 'unknown']
 VALUES = st.one_of(
     st.booleans(), st.integers(-2**63, 2**63 - 1), st.integers(-3, 2000),
     st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=10),

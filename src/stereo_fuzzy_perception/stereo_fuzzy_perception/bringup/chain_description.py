@@ -7,7 +7,9 @@ cannot start different executables, parameters files or remappings.
 
 from __future__ import annotations
 
+import hashlib
 import re
+import tempfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,7 +46,8 @@ class ProcessSpec:
         executable: The executable (what `ros2 run <package> <executable>` starts).
         parameter_files: Parameters files relative to the package's share directory, in order.
         overrides: Single parameters set after the files; "$(arg)" stands for an argument.
-        remappings: (from, to) topic remappings.
+        remappings: (from, to) topic remappings; "$(arg)" in `to` stands for an argument.
+        namespace: The node's namespace ('' = the root); "$(arg)" stands for an argument.
     """
 
     name: str
@@ -53,6 +56,26 @@ class ProcessSpec:
     parameter_files: tuple[str, ...] = ()
     overrides: tuple[tuple[str, ParameterValue], ...] = ()
     remappings: tuple[tuple[str, str], ...] = ()
+    namespace: str = ''
+
+    def resolved_namespace(self, arguments: Mapping[str, str]) -> str:
+        """Return the namespace with every "$(arg)" replaced ('' = the root).
+
+        Raises:
+            ChainDescriptionError: When it names an argument not in `arguments`.
+        """
+        namespace = _ARGUMENT.sub(self._substitution('namespace', arguments), self.namespace)
+        return _collapse_slashes(namespace).rstrip('/')
+
+    def resolved_remappings(self, arguments: Mapping[str, str]) -> list[tuple[str, str]]:
+        """Return the remappings with every "$(arg)" in a target replaced.
+
+        Raises:
+            ChainDescriptionError: When a target names an argument not in `arguments`.
+        """
+        return [(source, _collapse_slashes(
+            _ARGUMENT.sub(self._substitution(f'remapping {source}', arguments), target)))
+            for source, target in self.remappings]
 
     def resolved_overrides(self, arguments: Mapping[str, str]) -> dict[str, ParameterValue]:
         """Return the overrides with every "$(arg)" replaced by its value in `arguments`.
@@ -104,6 +127,47 @@ class ProcessSet:
         return values
 
 
+def _collapse_slashes(name: str) -> str:
+    """Return `name` with runs of '/' made one ('$(namespace)/pair' with namespace '/')."""
+    return re.sub('/{2,}', '/', name)
+
+
+def parameters_for_any_namespace(path: Path) -> Path:
+    """Return a parameters file whose `<node>:` sections also apply to namespaced nodes.
+
+    rcl matches a section `stereo_sync_node:` only to /stereo_sync_node, so a node pushed into a
+    namespace would silently ignore it (nav2 rewrites its YAML for the same reason). The copy
+    turns every such key into `/**/stereo_sync_node:`, which rcl matches in any namespace, the
+    root included; keys that already start with '/' are kept. A file without such keys is
+    returned unchanged; the copy lives in the temporary directory, named by content.
+
+    Raises:
+        ChainDescriptionError: When the file cannot be read or is not a YAML mapping.
+    """
+    try:
+        text = path.read_text()
+        document = yaml.safe_load(text)
+    except (OSError, yaml.YAMLError) as error:
+        raise ChainDescriptionError(f'{path}: cannot read the parameters file ({error})') \
+            from error
+    if not isinstance(document, dict):
+        raise ChainDescriptionError(f'{path}: a parameters file must be a mapping of node names')
+    if all(str(key).startswith('/') for key in document):
+        return path
+    rewritten = {key if str(key).startswith('/') else f'/**/{key}': value
+                 for key, value in document.items()}
+    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+    folder = Path(tempfile.gettempdir()) / 'stereo_fuzzy_parameters'
+    folder.mkdir(exist_ok=True)
+    copy = folder / f'{path.stem}-{digest}.yaml'
+    if not copy.exists():
+        partial = copy.with_suffix(f'.{id(rewritten)}.tmp')
+        partial.write_text(f'# {path} for nodes in any namespace (chain_description.py)\n'
+                           + yaml.safe_dump(rewritten, sort_keys=False))
+        partial.replace(copy)
+    return copy
+
+
 def format_parameter_value(value: ParameterValue) -> str:
     """Return `value` as a `-p name:=value` command-line value (YAML, as rcl parses it)."""
     if isinstance(value, bool):
@@ -111,6 +175,21 @@ def format_parameter_value(value: ParameterValue) -> str:
     if isinstance(value, list):
         return '[' + ', '.join(format_parameter_value(item) for item in value) + ']'
     return str(value)
+
+
+def parameter_files(process: ProcessSpec, arguments: Mapping[str, str],
+                    share_directory: Callable[[str], Path]) -> list[Path]:
+    """Return the parameters files of `process` in order: its own, then `params_file`.
+
+    For a namespaced process each file goes through parameters_for_any_namespace, so its
+    `<node>:` sections still apply.
+    """
+    paths = [share_directory(process.package) / relative for relative in process.parameter_files]
+    if arguments.get('params_file'):
+        paths.append(Path(arguments['params_file']))
+    if process.resolved_namespace(arguments):
+        paths = [parameters_for_any_namespace(path) for path in paths]
+    return paths
 
 
 def ros_arguments(process: ProcessSpec, arguments: Mapping[str, str],
@@ -123,14 +202,14 @@ def ros_arguments(process: ProcessSpec, arguments: Mapping[str, str],
         share_directory: The share directory of a package (where its parameters files are).
     """
     result = ['--ros-args', '-r', f'__node:={process.name}']
-    for relative in process.parameter_files:
-        result += ['--params-file', str(share_directory(process.package) / relative)]
-    params_file = arguments.get('params_file', '')
-    if params_file:
-        result += ['--params-file', params_file]
+    namespace = process.resolved_namespace(arguments)
+    if namespace:
+        result += ['-r', f'__ns:=/{namespace.lstrip("/")}']  # rcl wants it absolute
+    for path in parameter_files(process, arguments, share_directory):
+        result += ['--params-file', str(path)]
     for name, value in process.resolved_overrides(arguments).items():
         result += ['-p', f'{name}:={format_parameter_value(value)}']
-    for source, target in process.remappings:
+    for source, target in process.resolved_remappings(arguments):
         result += ['-r', f'{source}:={target}']
     return result
 
@@ -154,7 +233,7 @@ def _strings(value: object, where: str) -> tuple[str, ...]:
 def _process(name: str, entry: object, where: str) -> ProcessSpec:
     fields = _mapping(entry, where)
     unknown = sorted(set(fields) - {'package', 'executable', 'parameters', 'overrides',
-                                    'remappings'})
+                                    'remappings', 'namespace'})
     if unknown:
         raise ChainDescriptionError(f'{where}: unknown key(s) {", ".join(unknown)}')
     for key in ('package', 'executable'):
@@ -163,11 +242,14 @@ def _process(name: str, entry: object, where: str) -> ProcessSpec:
     remappings = _mapping(fields.get('remappings'), f'{where}.remappings')
     if not all(isinstance(target, str) for target in remappings.values()):
         raise ChainDescriptionError(f'{where}.remappings must map topic names to topic names')
+    namespace = fields.get('namespace', '')
+    if not isinstance(namespace, str):
+        raise ChainDescriptionError(f'{where}.namespace must be a string, got {namespace!r}')
     return ProcessSpec(
         name=name, package=fields['package'], executable=fields['executable'],
         parameter_files=_strings(fields.get('parameters'), f'{where}.parameters'),
         overrides=tuple(_mapping(fields.get('overrides'), f'{where}.overrides').items()),
-        remappings=tuple(remappings.items()))
+        remappings=tuple(remappings.items()), namespace=namespace)
 
 
 @dataclass(frozen=True)
@@ -252,17 +334,17 @@ def launch_description(set_name: str, description_file: Path) -> Any:
                   for argument in process_set.arguments}
         started = []
         for process in process_set.processes:
-            share = Path(get_package_share_directory(process.package))
-            parameters: list[Any] = [str(share / relative)
-                                     for relative in process.parameter_files]
-            if values.get('params_file'):
-                parameters.append(values['params_file'])
+            parameters: list[Any] = [str(path) for path in parameter_files(
+                process, values, lambda package: Path(get_package_share_directory(package)))]
             overrides = process.resolved_overrides(values)
             if overrides:
                 parameters.append(overrides)
             started.append(Node(package=process.package, executable=process.executable,
-                                name=process.name, parameters=parameters,
-                                remappings=list(process.remappings), output='screen'))
+                                name=process.name,
+                                namespace=process.resolved_namespace(values) or None,
+                                parameters=parameters,
+                                remappings=process.resolved_remappings(values),
+                                output='screen'))
         return started
 
     return LaunchDescription([

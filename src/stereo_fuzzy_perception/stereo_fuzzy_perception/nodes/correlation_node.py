@@ -31,7 +31,7 @@ from stereo_fuzzy_perception.core.matching.rectification import RectificationErr
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
 from stereo_fuzzy_perception.core.matching.window_matcher import MatcherInputError, warm_up
 from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
-from stereo_fuzzy_perception.nodes import qos
+from stereo_fuzzy_perception.nodes import qos, topic_names
 from stereo_fuzzy_perception.nodes.conversions import (
     ImageSizeError,
     check_pair_size,
@@ -60,13 +60,13 @@ class CorrelationNode(Node):
                                durability=qos.RESULTS.durability,
                                reliability=qos.reliability_from_name(
                                    self.settings.input_reliability))
-        self.matches_publisher = self.create_publisher(StereoMatches, 'stereo/matches',
+        self.matches_publisher = self.create_publisher(StereoMatches, topic_names.MATCHES,
                                                        qos.RESULTS)
-        self.points_publisher = self.create_publisher(PointCloud2, 'stereo/points', qos.RESULTS)
-        self.disparity_publisher = self.create_publisher(DisparityImage, 'stereo/disparity',
+        self.points_publisher = self.create_publisher(PointCloud2, topic_names.POINTS, qos.RESULTS)
+        self.disparity_publisher = self.create_publisher(DisparityImage, topic_names.DISPARITY,
                                                          qos.RESULTS)
-        self.diagnostics_publisher = self.create_publisher(DiagnosticArray, '/diagnostics',
-                                                           qos.DIAGNOSTICS)
+        self.diagnostics_publisher = self.create_publisher(
+            DiagnosticArray, topic_names.DIAGNOSTICS, qos.DIAGNOSTICS)
         self._input_qos = input_qos
 
         self._condition = threading.Condition()
@@ -125,9 +125,10 @@ class CorrelationNode(Node):
         # Subscribe only once the matcher has run (its kernel loaded, its working memory
         # faulted in), so that upstream publishers (or `bag play --wait-for-subscribers`) can
         # see on the graph when it is ready.
-        self.create_subscription(StereoPair, 'stereo/pair', self._on_pair, self._input_qos)
+        subscription = self.create_subscription(StereoPair, topic_names.PAIR, self._on_pair,
+                                                self._input_qos)
         self.get_logger().info(f'matching kernel ready in {seconds:.2f} s; subscribed to '
-                               'stereo/pair')
+                               f'{subscription.topic_name}')
         last_start = -float('inf')
         while True:
             with self._condition:
@@ -160,7 +161,7 @@ class CorrelationNode(Node):
                 raise RectificationError(
                     f'left image is {left.shape[1]}x{left.shape[0]} but right image is '
                     f'{right.shape[1]}x{right.shape[0]}')
-            # A stereo/disparity subscriber gets every row; otherwise only the rows that
+            # A disparity subscriber gets every row; otherwise only the rows that
             # point_stride publishes are matched.
             result = self.pipeline.process(
                 left, right, calibration,
@@ -250,7 +251,7 @@ class CorrelationNode(Node):
                 'pairs received': self.received,
                 'pairs processed': self.processed,
                 'pairs waiting': len(self._pending),
-                **self.pair_sequence.report('stereo/pair'),
+                **self.pair_sequence.report(topic_names.PAIR),
                 **{f'dropped {reason}': count for reason, count in self.dropped.items()},
                 'last valid points': self.last_points,
                 **{f'last {name} time [ms]': round(ms, 2)

@@ -85,7 +85,7 @@ class CorrelationSettings:
     roi: RoiSettings = parameter_group(RoiSettings)
     point_stride: int = parameter(
         1, 'Publish every n-th row and column of valid matches (1 = all); only those rows are '
-        'matched unless stereo/disparity has a subscriber', 1, 16)
+        'matched unless disparity has a subscriber', 1, 16)
     max_rate_hz: float = parameter(
         0.0, 'Most pairs matched per second [Hz]; 0 matches every pair it can (the newest pair '
         'always wins)', 0.0, 1000.0)
@@ -96,7 +96,7 @@ class CorrelationSettings:
         4096 * 3072, 'Largest image accepted [px, width x height]; larger pairs are dropped as '
         'image_too_large before they are decoded', 1, 32767 * 32767)
     input_reliability: str = parameter(
-        'reliable', 'Reliability of the stereo/pair subscription',
+        'reliable', 'Reliability of the pair subscription',
         choices=('reliable', 'best_effort'), read_only=True)
     diagnostics_period_s: float = parameter(
         1.0, 'Period of /diagnostics messages [s]', 0.1, 60.0, read_only=True)

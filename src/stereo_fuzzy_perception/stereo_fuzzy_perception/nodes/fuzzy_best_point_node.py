@@ -1,6 +1,7 @@
 """Choose the best point of the correlation area with the fuzzy system (or a baseline).
 
-Subscribes `stereo/matches` (StereoMatches) and `/tf_static`, publishes `best_point`
+Subscribes `matches` (StereoMatches; the chain remaps it to `stereo/matches`) and
+`/tf_static`, publishes `best_point`
 (PointStamped in `world`, stamped with the pair's stamp, only when a point was chosen),
 `best_point/decision` (FuzzyDecision, for every input, with the reason when no point was
 chosen), `best_point/markers` (MarkerArray in `world`: the correlation area, border points,
@@ -11,8 +12,12 @@ point count is the "fuzzy decision time" row of the README's benchmark table.
 
 The matches' frame is placed in `world` by, in this order: the pose file `rig_pose_file`, the
 transforms on /tf_static (a replayed bag that recorded them needs no rig parameters), or the
-chapter's rig.* numbers (core/rig_pose.py). A configured rig.baseline_m that disagrees with the
-calibration the matches carry refuses the decision (`rig_mismatch`), naming both baselines.
+chapter's rig.* numbers (core/rig_pose.py). A configured rig.baseline_m (> 0) must agree with
+the calibration: with `left_calibration_file` and `right_calibration_file` it is checked at
+start and a mismatch ends the node; in any case, the first matches message whose calibration
+contradicts it is logged once as an ERROR with both numbers, /diagnostics turns ERROR, and every
+decision from then on is refused as `rig_mismatch` with that reason (rig.baseline_m is
+read-only: the node must be restarted with the right value).
 """
 
 from __future__ import annotations
@@ -48,15 +53,24 @@ from stereo_fuzzy_perception.core.best_point.point_selectors import (
     SelectorError,
     load_selector_files,
 )
+from stereo_fuzzy_perception.core.camera_calibration_file import (
+    CalibrationFileError,
+    read_calibration_yaml,
+)
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.frame_transforms import (
     LEFT_CAMERA_FRAME,
     RigPoseError,
     Transform,
 )
-from stereo_fuzzy_perception.core.rig_pose import RIG_PARAMETERS, CameraPoseSource
+from stereo_fuzzy_perception.core.rig_pose import (
+    BASELINE_TOLERANCE_M,
+    RIG_PARAMETERS,
+    CameraPoseSource,
+    check_baseline,
+)
 from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
-from stereo_fuzzy_perception.nodes import qos
+from stereo_fuzzy_perception.nodes import qos, topic_names
 from stereo_fuzzy_perception.nodes.conversions import (
     best_point_to_point_stamped,
     camera_info_to_calibration,
@@ -68,12 +82,6 @@ from stereo_fuzzy_perception.nodes.conversions import (
 from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import FuzzyBestPointSettings
 from tf2_msgs.msg import TFMessage
 
-MATCHES_TOPIC = 'stereo/matches'
-BEST_POINT_TOPIC = 'best_point'
-DECISION_TOPIC = 'best_point/decision'
-MARKERS_TOPIC = 'best_point/markers'
-DIAGNOSTICS_TOPIC = '/diagnostics'
-TF_STATIC_TOPIC = '/tf_static'
 MALFORMED_INPUT = 'malformed_input'
 RIG_MISMATCH = 'rig_mismatch'
 INTERNAL_ERROR = 'internal_error'
@@ -113,8 +121,40 @@ def build_pose_source(settings: FuzzyBestPointSettings) -> CameraPoseSource:
                                           settings.world.world_frame)
 
 
+def calibration_files_problem(settings: FuzzyBestPointSettings) -> str | None:
+    """Return why the calibration files are unusable or contradict rig.baseline_m, or None.
+
+    Nothing is checked when neither file is given (the first matches message is checked then).
+    """
+    left_file, right_file = settings.left_calibration_file, settings.right_calibration_file
+    if not left_file and not right_file:
+        return None
+    if not left_file or not right_file:
+        return ('left_calibration_file and right_calibration_file go together; got '
+                f'{left_file!r} and {right_file!r}')
+    calibrations = []
+    for name, path in (('left_calibration_file', left_file),
+                       ('right_calibration_file', right_file)):
+        try:
+            calibrations.append(read_calibration_yaml(path))
+        except CalibrationFileError as error:
+            return f'{name}: {error}'
+    calibration = StereoCalibration(*calibrations)
+    problem = calibration.problem()
+    if problem:
+        return (f'left_calibration_file={left_file!r}, right_calibration_file={right_file!r}: '
+                f'{problem}')
+    if settings.rig.baseline_m > 0.0:
+        try:
+            check_baseline(settings.rig.baseline_m, calibration)
+        except RigPoseError as error:
+            return (f'{error} (calibration {right_file}; allowed: 0, or within '
+                    f'{BASELINE_TOLERANCE_M} m of the calibration)')
+    return None
+
+
 def chooser_problem(settings: FuzzyBestPointSettings) -> str | None:
-    """Return why the settings cannot work (a bad rule base or pose file), or None.
+    """Return why the settings cannot work (a bad rule base, pose or calibration file), or None.
 
     Both selector files are loaded and checked whichever selector is active, so a bad
     network_file is refused when it is set, not when neural_network is selected later. Never
@@ -130,11 +170,11 @@ def chooser_problem(settings: FuzzyBestPointSettings) -> str | None:
                 return f'{name}={rule_base_file or weights_file!r}: {error}'
         build_chooser(settings)
         build_pose_source(settings)
+        return calibration_files_problem(settings)
     except (SelectorError, RigPoseError) as error:
         return str(error)
     except Exception as error:  # a loader bug must refuse the change, not kill the node
         return f'cannot check the settings ({type(error).__name__}: {error})'
-    return None
 
 
 class FuzzyBestPointNode(Node):
@@ -149,6 +189,8 @@ class FuzzyBestPointNode(Node):
         self._pose_source = build_pose_source(self.settings)
         self._static_transforms: dict[str, Transform] = {}
         self._pose_origin = ''
+        # Set by the first matches message whose calibration contradicts rig.baseline_m.
+        self.rig_mismatch = ''
         # Compile (first run) or load the numba point kernel now, not on the first input.
         started = time.monotonic()
         four_areas.warm_up()
@@ -159,17 +201,21 @@ class FuzzyBestPointNode(Node):
         self._last_status = 'waiting for input'
         self.matches_sequence = SequenceGaps()
         self.best_point_publisher = self.create_publisher(
-            PointStamped, BEST_POINT_TOPIC, qos.RESULTS)
+            PointStamped, topic_names.BEST_POINT, qos.RESULTS)
         self.decision_publisher = self.create_publisher(
-            FuzzyDecision, DECISION_TOPIC, qos.RESULTS)
-        self.markers_publisher = self.create_publisher(MarkerArray, MARKERS_TOPIC, qos.RESULTS)
+            FuzzyDecision, topic_names.DECISION, qos.RESULTS)
+        self.markers_publisher = self.create_publisher(MarkerArray, topic_names.MARKERS,
+                                                       qos.RESULTS)
         self.diagnostics_publisher = self.create_publisher(
-            DiagnosticArray, DIAGNOSTICS_TOPIC, qos.DIAGNOSTICS)
-        self.create_subscription(StereoMatches, MATCHES_TOPIC, self._on_matches, qos.RESULTS)
-        self.create_subscription(TFMessage, TF_STATIC_TOPIC, self._on_tf_static, qos.TF_STATIC)
+            DiagnosticArray, topic_names.DIAGNOSTICS, qos.DIAGNOSTICS)
+        self.matches_subscription = self.create_subscription(
+            StereoMatches, topic_names.MATCHES, self._on_matches, qos.RESULTS)
+        self.create_subscription(TFMessage, topic_names.TF_STATIC, self._on_tf_static,
+                                 qos.TF_STATIC)
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(
-            f'choosing best points with {self._describe()} from {MATCHES_TOPIC}')
+            f'choosing best points with {self._describe()} from '
+            f'{self.matches_subscription.topic_name}')
 
     def _describe(self) -> str:
         chooser = self._chooser
@@ -205,6 +251,11 @@ class FuzzyBestPointNode(Node):
                                          reason=str(error))
             self._publish(decision, header, msg.header.frame_id)
             return
+        mismatch = self._baseline_mismatch(StereoCalibration(left, right))
+        if mismatch:
+            self._publish(BestPointDecision(chooser.selector, status=RIG_MISMATCH,
+                                            reason=mismatch), header, msg.header.frame_id)
+            return
         try:
             chooser = dataclasses.replace(chooser, world_from_camera=self._world_from_camera(
                 StereoCalibration(left, right), msg.header.frame_id or LEFT_CAMERA_FRAME))
@@ -230,6 +281,23 @@ class FuzzyBestPointNode(Node):
                 throttle_duration_sec=HINT_THROTTLE_S)
         self._publish(decision, header, msg.header.frame_id)
 
+    def _baseline_mismatch(self, calibration: StereoCalibration) -> str:
+        """Return why every decision is refused (rig.baseline_m vs calibration), or ''.
+
+        The first contradiction is kept for the node's life and logged once.
+        """
+        configured = self.settings.rig.baseline_m
+        if not self.rig_mismatch and configured > 0.0:
+            try:
+                check_baseline(configured, calibration)
+            except RigPoseError as error:
+                self.rig_mismatch = str(error)
+                self.get_logger().error(
+                    f'{error}; refusing every decision as {RIG_MISMATCH} until the node is '
+                    'restarted with a rig.baseline_m that agrees (allowed: 0, or within '
+                    f'{BASELINE_TOLERANCE_M} m of the calibration)')
+        return self.rig_mismatch
+
     def _on_tf_static(self, msg: TFMessage) -> None:
         transforms = tf_message_to_transforms(msg)
         with self._lock:
@@ -248,7 +316,7 @@ class FuzzyBestPointNode(Node):
         if not source.transforms:
             with self._lock:
                 static = list(self._static_transforms.values())
-            from_tf = source.with_transforms(static, TF_STATIC_TOPIC)
+            from_tf = source.with_transforms(static, topic_names.TF_STATIC)
             if static and from_tf.connects(camera_frame):
                 source = from_tf
         if source.origin != self._pose_origin:
@@ -277,7 +345,10 @@ class FuzzyBestPointNode(Node):
         refused = {reason: self.decisions[reason] for reason in REFUSAL_REASONS}
         status = DiagnosticStatus(name=f'{self.get_name()}: best point',
                                   hardware_id=self.get_name())
-        if made == 0 and not any(refused.values()):
+        if self.rig_mismatch:
+            status.level = DiagnosticStatus.ERROR
+            status.message = f'{RIG_MISMATCH}: {self.rig_mismatch}'
+        elif made == 0 and not any(refused.values()):
             status.level, status.message = DiagnosticStatus.OK, 'waiting for input'
         elif self._last_status == STATUS_OK:
             status.level, status.message = DiagnosticStatus.OK, 'choosing best points'
@@ -290,7 +361,7 @@ class FuzzyBestPointNode(Node):
                                             ('decisions refused', sum(refused.values()))]
         values += [(f'refused {reason}', count) for reason, count in refused.items()]
         with self._lock:
-            values += list(self.matches_sequence.report('stereo/matches').items())
+            values += list(self.matches_sequence.report(topic_names.MATCHES).items())
         status.values = [KeyValue(key=key, value=str(value)) for key, value in values]
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()

@@ -67,6 +67,13 @@ class FuzzyBestPointSettings:
         'static_transform_publisher takes); overrides the rig.* pose numbers; empty = use them',
         read_only=True)
     rig: RigSettings = parameter_group(RigSettings)
+    left_calibration_file: str = parameter(
+        '', 'Left camera calibration YAML; with the right one, a rig.baseline_m > 0 that '
+        'disagrees with them ends the node at start; empty = checked against the first '
+        'matches message instead: one ERROR, /diagnostics ERROR, every decision refused as '
+        'rig_mismatch', read_only=True)
+    right_calibration_file: str = parameter(
+        '', 'Right camera calibration YAML (its P gives the baseline)', read_only=True)
     # --- reporting
     diagnostics_period_s: float = parameter(
         1.0, 'Period of the /diagnostics report [s]', 0.1, 60.0, read_only=True)

@@ -16,8 +16,10 @@ class RigSettings:
     """Pose of the rig (the chapter's alpha, theta, z0 generalised); must match the calibration."""
 
     baseline_m: float = parameter(
-        0.0, 'Distance between the optical centres [m]; 0 = from the calibration (right P); a '
-        'value that disagrees with the calibration is refused', 0.0, 2.0, read_only=True)
+        0.0, 'Distance between the optical centres [m]; 0 = from the calibration (right P); '
+        'another value must agree with the calibration within 0.5 mm (fuzzy_best_point_node '
+        'refuses it: at start with left|right_calibration_file, else from the first input on)',
+        0.0, 2.0, read_only=True)
     alpha_deg: float = parameter(
         _RIG.alpha_deg, 'Rig tilt about its x axis (chapter alpha) [deg]', -90.0, 90.0,
         read_only=True)

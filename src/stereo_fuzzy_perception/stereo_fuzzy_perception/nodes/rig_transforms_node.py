@@ -22,12 +22,10 @@ from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.frame_transforms import RigPoseError, Transform
 from stereo_fuzzy_perception.core.pose_file import read_pose_file
 from stereo_fuzzy_perception.core.rig_pose import right_camera_transform
-from stereo_fuzzy_perception.nodes import qos
+from stereo_fuzzy_perception.nodes import qos, topic_names
 from stereo_fuzzy_perception.nodes.conversions import transforms_to_tf_message
 from stereo_fuzzy_perception.nodes.rig_transforms_parameters import RigTransformsSettings
 from tf2_msgs.msg import TFMessage
-
-TF_STATIC_TOPIC = '/tf_static'
 
 
 def rig_transforms(settings: RigTransformsSettings) -> list[Transform]:
@@ -76,7 +74,7 @@ class RigTransformsNode(Node):
         super().__init__('rig_transforms_node', **kwargs)
         self.settings = declare_settings(self, RigTransformsSettings, check=transforms_problem)
         self.transforms = rig_transforms(self.settings)
-        self.publisher = self.create_publisher(TFMessage, TF_STATIC_TOPIC,
+        self.publisher = self.create_publisher(TFMessage, topic_names.TF_STATIC,
                                                qos.TF_STATIC_BROADCAST)
         self.publisher.publish(transforms_to_tf_message(
             self.transforms, self.get_clock().now().to_msg()))

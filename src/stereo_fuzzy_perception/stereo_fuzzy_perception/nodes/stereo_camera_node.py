@@ -26,18 +26,36 @@ from stereo_fuzzy_perception.core.camera_calibration_file import (
     CalibrationFileError,
     read_calibration_yaml,
 )
-from stereo_fuzzy_perception.nodes.conversions import array_to_image, calibration_to_camera_info
-from stereo_fuzzy_perception.nodes.stereo_camera_parameters import StereoCameraSettings
-from stereo_fuzzy_perception.nodes.stereo_sync_node import (
+from stereo_fuzzy_perception.core.camera_model import CameraCalibration
+from stereo_fuzzy_perception.core.frame_capture import (
+    CaptureOpenError,
     DeviceCapture,
-    StereoSyncSetupError,
     convert_frame,
 )
+from stereo_fuzzy_perception.nodes import topic_names
+from stereo_fuzzy_perception.nodes.conversions import array_to_image, calibration_to_camera_info
+from stereo_fuzzy_perception.nodes.stereo_camera_parameters import StereoCameraSettings
 
 ERROR_THROTTLE_S = 5.0
 # Reliable, so that both reliable and best-effort subscribers (sensor data QoS) receive it.
 CAMERA_OUTPUT = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
                            reliability=ReliabilityPolicy.RELIABLE)
+
+
+def read_usable_calibration(name: str, path: str, frame_id: str) -> CameraCalibration:
+    """Read the calibration file of parameter `name`; refuse one the chain cannot use.
+
+    Raises:
+        CalibrationFileError: Naming the parameter, the file and what is wrong with it.
+    """
+    try:
+        calibration = read_calibration_yaml(path)
+    except CalibrationFileError as error:
+        raise CalibrationFileError(f'{name}: {error}') from None
+    problem = calibration.problem()
+    if problem:
+        raise CalibrationFileError(f'{name}: {path}: unusable calibration: {problem}')
+    return replace(calibration, frame_id=frame_id)
 
 
 class StereoCameraNode(Node):
@@ -49,21 +67,24 @@ class StereoCameraNode(Node):
         settings = self.settings
         try:
             self.calibrations = (
-                replace(read_calibration_yaml(settings.left_calibration_file),
-                        frame_id=settings.left_frame_id),
-                replace(read_calibration_yaml(settings.right_calibration_file),
-                        frame_id=settings.right_frame_id))
+                read_usable_calibration('left_calibration_file', settings.left_calibration_file,
+                                        settings.left_frame_id),
+                read_usable_calibration('right_calibration_file',
+                                        settings.right_calibration_file,
+                                        settings.right_frame_id))
         except CalibrationFileError as error:
             raise StartupError(str(error), self.get_name()) from None
         self.publishers_by_side = {
-            side: (self.create_publisher(Image, f'{side}/image_raw', CAMERA_OUTPUT),
-                   self.create_publisher(CameraInfo, f'{side}/camera_info', CAMERA_OUTPUT))
-            for side in ('left', 'right')}
+            side: (self.create_publisher(Image, image_topic, CAMERA_OUTPUT),
+                   self.create_publisher(CameraInfo, info_topic, CAMERA_OUTPUT))
+            for side, image_topic, info_topic in (
+                ('left', topic_names.LEFT_IMAGE, topic_names.LEFT_CAMERA_INFO),
+                ('right', topic_names.RIGHT_IMAGE, topic_names.RIGHT_CAMERA_INFO))}
         self.frames_published = 0
         self.capture_state = 'running'
         try:
             self._capture = DeviceCapture(str(settings.left_device), str(settings.right_device))
-        except StereoSyncSetupError as error:
+        except CaptureOpenError as error:
             raise StartupError(str(error), self.get_name()) from None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._capture_loop, name='stereo_camera',

@@ -1,15 +1,13 @@
 """Pair left and right images with their calibration into StereoPair messages.
 
-Two sources (parameter `source`):
-
-- `topics`: left/image_raw, left/camera_info, right/image_raw, right/camera_info, grouped by
-  header stamp by stamp_pairing.StampSynchronizer over the four streams (exact, or within
-  `slop_s`), as stereo_image_proc synchronises the same four inputs with message_filters.
-- `devices`: two OpenCV captures (device index, video file or image pattern) read by a
-  capture thread at `frame_rate_hz`, with calibration from two ROS camera-calibration YAML files.
+Inputs: left/image_raw, left/camera_info, right/image_raw, right/camera_info (a camera driver,
+stereo_camera_node, or a bag replay), grouped by header stamp by stamp_pairing.StampSynchronizer
+over the four streams (exact, or within `slop_s`), as stereo_image_proc synchronises the same
+four inputs with message_filters. The node only pairs topics: capturing devices is
+stereo_camera_node's job.
 
 Every set is checked (encoding, image sizes, calibration) before it is published on
-stereo/pair; a bad set is dropped, counted by reason and reported on /diagnostics.
+pair; a bad set is dropped, counted by reason and reported on /diagnostics.
 """
 
 from __future__ import annotations
@@ -17,12 +15,10 @@ from __future__ import annotations
 import threading
 import time
 from collections import Counter, deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
-import cv2
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
 from rclpy.impl.rcutils_logger import RcutilsLogger
@@ -30,20 +26,14 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header
-from stereo_fuzzy_parameters.declaration import StartupError, declare_settings, run_node
+from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 
 from stereo_fuzzy_msgs.msg import StereoPair
-from stereo_fuzzy_perception.core.camera_calibration_file import (
-    CalibrationFileError,
-    read_calibration_yaml,
-)
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.image_encoding import SUPPORTED_ENCODINGS, ImageEncodingError
 from stereo_fuzzy_perception.core.stamp_pairing import Evicted, StampSynchronizer, seconds_to_ns
-from stereo_fuzzy_perception.nodes import qos
+from stereo_fuzzy_perception.nodes import qos, topic_names
 from stereo_fuzzy_perception.nodes.conversions import (
-    array_to_image,
-    calibration_to_camera_info,
     camera_info_to_calibration,
     check_image_layout,
     image_size_problem,
@@ -52,11 +42,9 @@ from stereo_fuzzy_perception.nodes.conversions import (
 from stereo_fuzzy_perception.nodes.stereo_sync_parameters import StereoSyncSettings
 
 # The four synchronised input streams, in StampSynchronizer stream order.
-INPUT_TOPICS = ('left/image_raw', 'left/camera_info', 'right/image_raw', 'right/camera_info')
+INPUT_TOPICS = topic_names.CAMERA_TOPICS
 LEFT_IMAGE, LEFT_INFO, RIGHT_IMAGE, RIGHT_INFO = range(4)
 INFO_OF_IMAGE = {LEFT_IMAGE: LEFT_INFO, RIGHT_IMAGE: RIGHT_INFO}
-PAIR_TOPIC = 'stereo/pair'
-DIAGNOSTICS_TOPIC = '/diagnostics'
 
 # Why a pair is dropped; every reason is reported on /diagnostics, zero or not.
 DROP_REASONS = (
@@ -70,10 +58,6 @@ DROP_REASONS = (
 )
 ERROR_THROTTLE_S = 5.0
 DEFAULT_MAX_IMAGE_PIXELS = StereoSyncSettings().max_image_pixels
-
-
-class StereoSyncSetupError(ValueError):
-    """A capture source the node cannot start with, named in the message."""
 
 
 @dataclass(frozen=True)
@@ -124,7 +108,7 @@ def pair_problem(left_image: Image, left_info: CameraInfo, right_image: Image,
 
 
 class PairStatistics:
-    """Counts for /diagnostics; thread-safe, since the devices source counts from its thread."""
+    """Counts for /diagnostics; thread-safe, so a report never sees a half-made update."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -144,7 +128,7 @@ class PairStatistics:
             self.received[topic] += 1
 
     def count_in(self) -> None:
-        """Count one set (or captured frame pair) entering the checks."""
+        """Count one set of four entering the checks."""
         with self._lock:
             self.pairs_in += 1
 
@@ -204,19 +188,11 @@ class StereoSyncNode(Node):
         self.settings = declare_settings(self, StereoSyncSettings, apply=self._apply_settings)
         self.statistics = PairStatistics()
         self._reason_loggers: dict[str, RcutilsLogger] = {}
-        self._capture: DeviceCapture | None = None
-        self._capture_state = ''
-        self.pair_publisher = self.create_publisher(StereoPair, PAIR_TOPIC, qos.RESULTS)
+        self.pair_publisher = self.create_publisher(StereoPair, topic_names.PAIR, qos.RESULTS)
         self.diagnostics_publisher = self.create_publisher(
-            DiagnosticArray, DIAGNOSTICS_TOPIC, qos.DIAGNOSTICS)
+            DiagnosticArray, topic_names.DIAGNOSTICS, qos.DIAGNOSTICS)
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
-        if self.settings.source == 'topics':
-            self._start_topics()
-        else:
-            try:
-                self._start_devices()
-            except (StereoSyncSetupError, CalibrationFileError) as error:
-                raise StartupError(str(error), self.get_name()) from None
+        self._start_topics()
 
     # --- parameters ----------------------------------------------------------------------
 
@@ -227,7 +203,7 @@ class StereoSyncNode(Node):
             synchronizer.slop_ns = seconds_to_ns(settings.slop_s)
             synchronizer.queue_size = settings.queue_size
 
-    # --- topics source -------------------------------------------------------------------
+    # --- inputs -------------------------------------------------------------------------
 
     def _start_topics(self) -> None:
         self._synchronizer: StampSynchronizer[Image | CameraInfo] = StampSynchronizer(
@@ -278,84 +254,7 @@ class StereoSyncNode(Node):
             f'none queued on {info_topic} ({self.statistics.received[info_topic]} received); '
             f'it must be published with the stamps of its images'))
 
-    # --- devices source ------------------------------------------------------------------
-
-    def _start_devices(self) -> None:
-        settings = self.settings
-        calibrations = []
-        for name, path, frame_id in (
-                ('left_calibration_file', settings.left_calibration_file, settings.left_frame_id),
-                ('right_calibration_file', settings.right_calibration_file,
-                 settings.right_frame_id)):
-            try:
-                calibration = read_calibration_yaml(path)
-            except CalibrationFileError as error:
-                raise CalibrationFileError(f'{name}: {error}') from None
-            problem = calibration.problem()
-            if problem:
-                raise CalibrationFileError(f'{name}: {path}: unusable calibration: {problem}')
-            calibrations.append(replace(calibration, frame_id=frame_id))
-        self._device_calibrations = tuple(calibrations)
-        self._capture = DeviceCapture(settings.left_device, settings.right_device)
-        self._capture_state = 'running'
-        self._capture_stop = threading.Event()
-        self._capture_thread = threading.Thread(
-            target=self._capture_loop, name='stereo_capture', daemon=True)
-        self._capture_thread.start()
-        self.get_logger().info(
-            f'capturing {settings.left_device} and {settings.right_device} '
-            f'at {settings.frame_rate_hz} Hz')
-
-    def _capture_loop(self) -> None:
-        try:
-            self._capture_frames()
-        except Exception as error:  # the thread must report, not die silently
-            if self._capture_stop.is_set() or not self.context.ok():
-                return
-            self._capture_state = 'failed'
-            self.get_logger().error(f'capture stopped: {error}')
-
-    def _capture_frames(self) -> None:
-        assert self._capture is not None
-        next_frame = time.monotonic()
-        rewound = False
-        while not self._capture_stop.is_set():
-            frames = self._capture.read()
-            if frames is None:
-                # Rewind once per end: a file that yields nothing even from its start ends.
-                if not self._capture.is_live and self.settings.loop and not rewound:
-                    self._capture.rewind()
-                    rewound = True
-                    continue
-                if not self._capture.is_live:
-                    self._capture_state = 'ended'
-                    self.get_logger().info(
-                        f'end of {self._capture.left_source} / {self._capture.right_source}: '
-                        f'{self.statistics.pairs_in} pairs captured; no more pairs '
-                        f'(set loop:=true to start again)')
-                    return
-                self.get_logger().error(
-                    f'cannot read a frame from device {self._capture.left_source} or '
-                    f'{self._capture.right_source}; retrying',
-                    throttle_duration_sec=ERROR_THROTTLE_S)
-            else:
-                rewound = False
-                self._publish_frames(*frames)
-            period = 1.0 / self.settings.frame_rate_hz
-            next_frame = max(next_frame + period, time.monotonic())
-            self._capture_stop.wait(next_frame - time.monotonic())
-
-    def _publish_frames(self, left: np.ndarray, right: np.ndarray) -> None:
-        header = Header(stamp=self.get_clock().now().to_msg())
-        encoding = self.settings.encoding
-        messages = []
-        for frame, calibration in zip((left, right), self._device_calibrations, strict=True):
-            side_header = Header(stamp=header.stamp, frame_id=calibration.frame_id)
-            messages.append(array_to_image(convert_frame(frame, encoding), encoding, side_header))
-            messages.append(calibration_to_camera_info(calibration, side_header))
-        self._publish_pair(*messages)
-
-    # --- both sources --------------------------------------------------------------------
+    # --- checks and output ---------------------------------------------------------------
 
     def _publish_pair(self, left_image: Image, left_info: CameraInfo, right_image: Image,
                       right_info: CameraInfo) -> None:
@@ -387,22 +286,13 @@ class StereoSyncNode(Node):
         settings = self.settings
         window = settings.drop_warn_window_s
         report = self.statistics.report(window)
-        # The devices this node reads, or the node itself when it reads topics.
-        hardware_id = (f'{settings.left_device} {settings.right_device}'
-                       if settings.source == 'devices' else self.get_name())
         status = DiagnosticStatus(name=f'{self.get_name()}: stereo pairing',
-                                  hardware_id=hardware_id)
+                                  hardware_id=self.get_name())
         dropped = {reason: count for reason, count in report['dropped'].items() if count}
         if report['recent_drops']:
             status.level = DiagnosticStatus.WARN
             status.message = (f'{report["recent_drops"]} pairs dropped in the last {window} s ('
                               + ', '.join(f'{r}: {c}' for r, c in dropped.items()) + ' in all)')
-        elif self._capture_state == 'failed':
-            status.level = DiagnosticStatus.ERROR
-            status.message = 'capture failed'
-        elif self._capture_state == 'ended':
-            status.level = DiagnosticStatus.OK
-            status.message = 'capture ended'
         elif report['pairs_out'] == 0:
             status.level = DiagnosticStatus.OK
             status.message = 'waiting for input'
@@ -410,7 +300,6 @@ class StereoSyncNode(Node):
             status.level = DiagnosticStatus.OK
             status.message = 'pairing'
         values = [
-            ('source', settings.source),
             ('pairs in', report['pairs_in']),
             ('pairs out', report['pairs_out']),
             ('pairs dropped', sum(report['dropped'].values())),
@@ -418,96 +307,21 @@ class StereoSyncNode(Node):
             ('output rate [Hz]', f'{report["output_rate_hz"]:.2f}'),
         ]
         values += [(f'dropped {reason}', count) for reason, count in report['dropped'].items()]
-        if settings.source == 'topics':
-            values.append(('slop [s]', settings.slop_s))
-            values += [(f'received {topic}', report['received'].get(topic, 0))
-                       for topic in INPUT_TOPICS]
-            values += [(f'unpaired {topic}', report['unpaired'].get(topic, 0))
-                       for topic in INPUT_TOPICS]
-            values += [(f'lost before delivery {topic}', report['lost'].get(topic, 0))
-                       for topic in INPUT_TOPICS]
-        else:
-            values.append(('capture', self._capture_state))
+        values.append(('slop [s]', settings.slop_s))
+        values += [(f'received {topic}', report['received'].get(topic, 0))
+                   for topic in INPUT_TOPICS]
+        values += [(f'unpaired {topic}', report['unpaired'].get(topic, 0))
+                   for topic in INPUT_TOPICS]
+        values += [(f'lost before delivery {topic}', report['lost'].get(topic, 0))
+                   for topic in INPUT_TOPICS]
         status.values = [KeyValue(key=key, value=str(value)) for key, value in values]
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()
         self.diagnostics_publisher.publish(array)
 
-    def destroy_node(self) -> None:
-        """Stop the capture thread and release the captures, then destroy the node."""
-        if self._capture is not None:
-            self._capture_stop.set()
-            self._capture_thread.join(timeout=5.0)
-            self._capture.release()
-            self._capture = None
-        super().destroy_node()
-
-
-class DeviceCapture:
-    """Two OpenCV captures read as a pair: grab both first, then decode, to keep them close.
-
-    Args:
-        left_source: Device index ('0'), device path, video file or image pattern.
-        right_source: Likewise for the right camera.
-
-    Raises:
-        StereoSyncSetupError: When a capture cannot be opened, naming it.
-    """
-
-    def __init__(self, left_source: str, right_source: str) -> None:
-        self.left_source, self.right_source = left_source, right_source
-        # Cameras and streams have no end; files and image patterns do.
-        self.is_live = (left_source.isdigit() or left_source.startswith('/dev/')
-                        or '://' in left_source)
-        self._captures = self._open_both()
-
-    def _open_both(self) -> list[cv2.VideoCapture]:
-        captures = []
-        for name, source in (('left_device', self.left_source),
-                             ('right_device', self.right_source)):
-            capture = cv2.VideoCapture(int(source) if source.isdigit() else source)
-            if not capture.isOpened():
-                for opened in captures:
-                    opened.release()
-                raise StereoSyncSetupError(
-                    f'{name}={source!r}: cannot open the capture (allowed: a device index, a '
-                    'device path, a video file, or an image pattern such as left_%03d.png)')
-            captures.append(capture)
-        return captures
-
-    def read(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Return the next (left, right) frames, or None when either capture has none."""
-        if not all(capture.grab() for capture in self._captures):
-            return None
-        frames = [capture.retrieve() for capture in self._captures]
-        if not all(ok and frame is not None for ok, frame in frames):
-            return None
-        return frames[0][1], frames[1][1]
-
-    def rewind(self) -> None:
-        """Reopen both files at their first frame."""
-        self.release()
-        self._captures = self._open_both()
-
-    def release(self) -> None:
-        """Release both captures."""
-        for capture in self._captures:
-            capture.release()
-
-
-def convert_frame(frame: np.ndarray, encoding: str) -> np.ndarray:
-    """Convert an OpenCV frame (BGR, or grey from some backends) to `encoding`."""
-    if frame.ndim == 2:
-        frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
-    if encoding == 'mono8':
-        return cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
-    if encoding == 'rgb8':
-        return cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
-    return frame
-
 
 def main(args: list[str] | None = None) -> None:
-    """Run the node until shutdown; a bad parameter, file or device ends it with one line."""
+    """Run the node until shutdown; a bad parameter ends it with one line."""
     run_node(StereoSyncNode, args)
 
 
