@@ -212,8 +212,11 @@ CLONED_FOR_SIMD static void prepare_band(
     double *restrict window_square = memory->window_square;
     float *restrict row = memory->row, *restrict other_row = memory->other_row;
 
-    const int64_t padded_first = y_first == 0 ? 0 : y_first + radius;
-    const int64_t padded_stop = y_stop == height ? height + 2 * radius : y_stop + radius;
+    /* Padded rows y_first + r .. y_stop + r - 1, and the r rows above and below the region's
+     * rows for its first and last band: padded row p holds image row p - r, reflected. */
+    const int64_t region_stop = call->roi_y + call->roi_height;
+    const int64_t padded_first = y_first == call->roi_y ? y_first : y_first + radius;
+    const int64_t padded_stop = y_stop == region_stop ? y_stop + 2 * radius : y_stop + radius;
     for (int64_t padded_row = padded_first; padded_row < padded_stop; ++padded_row) {
         float *restrict out = padded_out + padded_row * width;
         load_row(source, width, reflect(padded_row - radius, height), row);
@@ -571,20 +574,24 @@ static void *work(void *argument_pointer)
     prepare.row = (float *)take(&cursor, (size_t)call->width * 4);
     prepare.other_row = (float *)take(&cursor, (size_t)call->width * 4);
 
-    /* 1. Both images, in bands: left ones (with the outputs of their rows) then right ones. */
+    /* 1. The region's rows of both images, in bands: left ones (with the outputs of a band of
+     * the whole image's rows) then right ones. Rows outside the region are never read. */
     const int64_t prepare_items = 2 * call->prepare_bands;
     for (int64_t item; (item = atomic_fetch_add(&call->next_prepare, 1)) < prepare_items;) {
         const int right = item >= call->prepare_bands;
+        const int64_t band = item % call->prepare_bands;
         int64_t y_first, y_stop;
-        band_rows(0, call->height, call->prepare_bands, item % call->prepare_bands, &y_first,
-                  &y_stop);
+        band_rows(call->roi_y, call->roi_height, call->prepare_bands, band, &y_first, &y_stop);
         if (y_first < y_stop && right) {
             prepare_band(call, &call->right, 1, y_first, y_stop, call->right_reversed, NULL,
                          call->right_mean, call->right_scale, NULL, &prepare);
-        } else if (y_first < y_stop) {
-            prepare_band(call, &call->left, 0, y_first, y_stop, call->left_padded,
-                         call->left_offset, NULL, call->left_scale, call->texture_ok, &prepare);
-            initialise_outputs(call, y_first, y_stop);
+        } else if (!right) {
+            if (y_first < y_stop)
+                prepare_band(call, &call->left, 0, y_first, y_stop, call->left_padded,
+                             call->left_offset, NULL, call->left_scale, call->texture_ok,
+                             &prepare);
+            band_rows(0, call->height, call->prepare_bands, band, &y_first, &y_stop);
+            if (y_first < y_stop) initialise_outputs(call, y_first, y_stop);
         }
         pthread_mutex_lock(&call->lock);
         if (++call->prepared_items == prepare_items) pthread_cond_broadcast(&call->all_prepared);
@@ -768,7 +775,7 @@ static PyObject *correlate(PyObject *self, PyObject *args, PyObject *kwargs)
                                                             : width - radius;
     call.out_x_begin = roi_x > radius ? roi_x : radius;
     call.out_x_end = roi_x + roi_width < width - radius ? roi_x + roi_width : width - radius;
-    call.prepare_bands = 2 * threads < height ? 2 * threads : height;
+    call.prepare_bands = 2 * threads < roi_height ? 2 * threads : roi_height;
     call.bands = bands < roi_height ? bands : roi_height;
     char *cursor = (char *)holds[5].view.buf;
     cursor += (ALIGNMENT - (uintptr_t)cursor % ALIGNMENT) % ALIGNMENT;
