@@ -1,0 +1,188 @@
+#!/usr/bin/env python3
+"""Matching where the object is: accuracy and time of the area search against the whole image.
+
+For each rendered scene of the chapter's Table 1 set-up (table1_benchmark's scene seeds and
+rig, the demo's point stride), in one run:
+
+1. whole image: the correlation stage (rectify, match, triangulate) on the pair, then the
+   fitted fuzzy rules decide (the chain's default selector);
+2. area search: the decision's correlation area gives the search region of the next pair
+   (area_search.search_region, correlation_node's default margins); the same pair is matched
+   in it (a static scene) and decided again. A region whose check fails is matched again on
+   the whole image, as correlation_node does (counted);
+3. wrong area: the region of the previous scene (another object elsewhere) on this pair: the
+   check must send it to the whole image, or the decision must be as good.
+
+Success = best point within --tolerance-mm of the top face's centre (as table1_benchmark).
+Stage times are medians of the calls, against StereoBM (block 9, the whole-image disparities)
+on the same rectified pair. Markdown to stdout. Timings on a shared machine are noisy.
+
+    source scripts/env.sh
+    nice python benchmarks/area_search_benchmark.py --scenes-per-type 10
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / 'src' / 'stereo_fuzzy_perception'))
+sys.path.insert(0, str(ROOT / 'benchmarks'))
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.point_selectors import (  # noqa: E402
+    BestPointChooser,
+    BestPointDecision,
+)
+from stereo_fuzzy_perception.core.image_encoding import to_gray  # noqa: E402
+from stereo_fuzzy_perception.core.matching.area_search import (  # noqa: E402
+    AreaProjectionError,
+    SearchRegion,
+    TrackedArea,
+    search_region,
+)
+from stereo_fuzzy_perception.core.matching.area_tracker import TrackingConfig  # noqa: E402
+from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchResult  # noqa: E402
+from stereo_fuzzy_perception.simulation.rendered_scenes import RenderedSceneSource  # noqa: E402
+from stereo_fuzzy_perception.simulation.synthetic_scenes import OBJECT_TYPES  # noqa: E402
+from table1_benchmark import demo_point_stride, scene_seeds  # noqa: E402
+
+
+def tracked_area(decision: BestPointDecision) -> TrackedArea | None:
+    """Return the decision's area as correlation_node takes it from FuzzyDecision."""
+    if not decision.has_best_point:
+        return None
+    surface = decision.surface
+    area = TrackedArea(0.0, np.asarray(decision.border_points, dtype=float),
+                       float(decision.top_height), (0.0, 0.0, float(surface.offset_m)),
+                       tuple(float(value) for value in surface.normal),
+                       float(surface.disparity_sigma_px))
+    return None if area.problem() else area
+
+
+def error_mm(decision: BestPointDecision, target: np.ndarray) -> float:
+    """Return the 3D error of the best point [mm], inf without one."""
+    point = decision.best_point_world
+    return float('inf') if point is None else 1e3 * float(np.linalg.norm(point - target))
+
+
+def total_ms(result: StereoMatchResult) -> float:
+    """Return the stage's time for the pair [ms] (including a failed region's)."""
+    return sum(result.timings_ms.values())
+
+
+def main() -> None:
+    """Run the three modes on every scene and print the tables."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--scenes-per-type', type=int, default=10)
+    parser.add_argument('--seed', type=int, default=3)
+    parser.add_argument('--tolerance-mm', type=float, default=3.0)
+    args = parser.parse_args()
+    load = os.getloadavg()[0]
+    stride = demo_point_stride()
+    tracking = TrackingConfig()
+    seeds = scene_seeds(args.seed, args.scenes_per_type)
+    rows: list[dict[str, object]] = []
+    with RenderedSceneSource(point_stride=stride) as source:
+        chooser = BestPointChooser.create('fuzzy_fitted', AreaConfig(), source.rig)
+        pose = source.rig.world_from_left_camera()
+        pipeline = source.pipeline()
+        full_range = (pipeline.config.min_disparity, pipeline.config.disparity_range)
+        bm = cv2.StereoBM_create(numDisparities=16 * -(-full_range[1] // 16), blockSize=9)
+        bm.setMinDisparity(full_range[0])
+        previous: SearchRegion | None = None
+        for kind in OBJECT_TYPES:
+            for seed in seeds[kind]:
+                frame = source.render(seed, kind)
+                target = np.asarray(frame.ground_truth.target_world, dtype=float)
+                left = to_gray(frame.left, frame.encoding)
+                right = to_gray(frame.right, frame.encoding)
+                full = pipeline.process(left, right, frame.calibration)
+                decided = chooser.decide(full.points, full.rectified.left, full.rectified.right)
+                left_rect, right_rect, _ = pipeline.rectifier.rectify(left, right,
+                                                                      frame.calibration)
+                start = time.perf_counter()
+                bm.compute(left_rect, right_rect)
+                row: dict[str, object] = {
+                    'kind': kind, 'full_mm': error_mm(decided, target),
+                    'full_ms': total_ms(full), 'bm_ms': 1e3 * (time.perf_counter() - start)}
+                area = tracked_area(decided)
+                region = None
+                if area is not None:
+                    try:
+                        region = search_region(area, frame.calibration, pose, full_range,
+                                               tracking.margin_object_sizes, tracking.margin_m)
+                    except AreaProjectionError as error:
+                        row['no_region'] = str(error)
+                if region is not None:
+                    tracked = pipeline.process(left, right, frame.calibration, region=region)
+                    again = chooser.decide(tracked.points, tracked.rectified.left,
+                                           tracked.rectified.right)
+                    row.update(region_mm=error_mm(again, target), region_ms=total_ms(tracked),
+                               region_problem=tracked.region_problem,
+                               region_share=region.roi[2] * region.roi[3] / left.size,
+                               region_disparities=region.disparity_range)
+                if previous is not None:
+                    wrong = pipeline.process(left, right, frame.calibration, region=previous)
+                    other = chooser.decide(wrong.points, wrong.rectified.left,
+                                           wrong.rectified.right)
+                    row.update(wrong_mm=error_mm(other, target),
+                               wrong_problem=wrong.region_problem)
+                previous = region or previous
+                rows.append(row)
+                print(f'{kind} {seed}: {row}', file=sys.stderr)
+    report(rows, args.tolerance_mm, stride, load)
+
+
+def report(rows: list[dict[str, object]], tolerance: float, stride: int, load: float) -> None:
+    """Print the accuracy and time tables."""
+    def share(values: list[float]) -> str:
+        return (f'{100 * sum(value <= tolerance for value in values) / len(values):.1f} %'
+                if values else '-')
+
+    def mean_finite(values: list[float]) -> str:
+        finite = [value for value in values if np.isfinite(value)]
+        return f'{statistics.fmean(finite):.2f}' if finite else '-'
+
+    print(f'\n### Area search (point stride {stride}, fitted rules; {os.cpu_count()} CPUs, '
+          f'1-min load {load:.1f} before, {os.getloadavg()[0]:.1f} after)\n')
+    print(f'| object | scenes | whole image within {tolerance:g} mm / mean [mm] | area search '
+          'within / mean [mm] | region kept / checked | same point (within 0.5 mm) | '
+          'wrong area: kept / checked, within |')
+    print('|---|---:|---:|---:|---:|---:|---:|')
+    for kind in (*OBJECT_TYPES, 'all'):
+        chosen = [row for row in rows if kind in ('all', row['kind'])]
+        full = [float(row['full_mm']) for row in chosen]  # type: ignore[arg-type]
+        tracked = [row for row in chosen if 'region_mm' in row]
+        # a rejected region falls back to the whole image: its decision is the whole image's
+        region = [float(row['region_mm']) for row in tracked]  # type: ignore[arg-type]
+        kept = [row for row in tracked if not row['region_problem']]
+        same = sum(abs(float(row['region_mm']) - float(row['full_mm'])) <= 0.5  # type: ignore[arg-type]
+                   or row['region_mm'] == row['full_mm'] for row in tracked)
+        wrong = [row for row in chosen if 'wrong_mm' in row]
+        wrong_kept = [row for row in wrong if not row['wrong_problem']]
+        print(f'| {kind} | {len(chosen)} | {share(full)} / {mean_finite(full)} '
+              f'| {share(region)} / {mean_finite(region)} | {len(kept)} / {len(tracked)} '
+              f'| {same} / {len(tracked)} | {len(wrong_kept)} / {len(wrong)}, '
+              f'{share([float(row["wrong_mm"]) for row in wrong])} |')  # type: ignore[arg-type]
+    kept_rows = [row for row in rows if 'region_mm' in row and not row['region_problem']]
+    print('\n| stage time per pair, median [ms] | whole image | area search (kept regions) | '
+          'StereoBM, whole image | region share of the image | disparities searched |')
+    print('|---|---:|---:|---:|---:|---:|')
+    if kept_rows:
+        print(f'| 640x480 | {statistics.median(float(r["full_ms"]) for r in rows):.1f} '  # type: ignore[arg-type]
+              f'| {statistics.median(float(r["region_ms"]) for r in kept_rows):.1f} '  # type: ignore[arg-type]
+              f'| {statistics.median(float(r["bm_ms"]) for r in rows):.1f} '  # type: ignore[arg-type]
+              f'| {statistics.median(float(r["region_share"]) for r in kept_rows):.2f} '  # type: ignore[arg-type]
+              f'| {statistics.median(int(r["region_disparities"]) for r in kept_rows):.0f} |')  # type: ignore[call-overload]
+
+
+if __name__ == '__main__':
+    main()
