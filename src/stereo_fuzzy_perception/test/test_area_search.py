@@ -5,8 +5,10 @@ import pytest
 from grid_scenes import Box, grid_matches
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.matching.area_search import (
+    AT_DISPARITY_LIMIT,
     OBJECT_AT_EDGE,
     OBJECT_LOST,
+    OBJECT_MOVED,
     AreaProjectionError,
     SearchRegion,
     TrackedArea,
@@ -109,21 +111,24 @@ def _disparity_map(disparity: np.ndarray) -> DisparityMap:
                         status, (0, 0, disparity.shape[1], disparity.shape[0]), MatcherConfig())
 
 
-REGION = SearchRegion((20, 20, 60, 60), 0, 32, (0.0, 0.0, 8.0), 1.0, 400.0)
+REGION = SearchRegion((20, 20, 60, 60), 0, 32, (0.0, 0.0, 8.0), 1.0, 256.0, (50.0, 50.0))
 
 
-@pytest.mark.parametrize(('block', 'expected'), [
-    ((40, 40), None),  # inside, away from the ring
-    ((20, 40), OBJECT_AT_EDGE),  # reaches the region's left edge
-    ((40, 65), OBJECT_AT_EDGE),  # reaches its bottom edge
-    (None, OBJECT_LOST),  # only the surface
-], ids=['inside', 'left-edge', 'bottom-edge', 'gone'])
+@pytest.mark.parametrize(('block', 'top', 'expected'), [
+    ((40, 40), 10.0, None),  # inside, away from the ring, where the top face was
+    ((20, 40), 10.0, OBJECT_AT_EDGE),  # reaches the region's left edge
+    ((40, 65), 10.0, OBJECT_AT_EDGE),  # reaches its bottom edge
+    ((40, 40), 31.0, AT_DISPARITY_LIMIT),  # taller than the range searched
+    (None, 10.0, OBJECT_LOST),  # only the surface
+    ((52, 28), 10.0, OBJECT_MOVED),  # inside, but off the top face's centre
+], ids=['inside', 'left-edge', 'bottom-edge', 'at-limit', 'gone', 'moved'])
 @pytest.mark.parametrize('stride', [1, 3])
-def test_the_region_check_finds_an_object_at_its_edge_or_gone(block, expected, stride):
+def test_the_region_check_finds_an_object_at_its_edge_gone_moved_or_too_tall(
+        block, top, expected, stride):
     disparity = np.full((100, 100), 8.0)
     disparity[::7, ::5] += 0.5  # noise below the standing threshold
     if block is not None:
-        disparity[block[1]:block[1] + 20, block[0]:block[0] + 20] = 10.0
+        disparity[block[1]:block[1] + 20, block[0]:block[0] + 20] = top
     assert region_problem(_disparity_map(disparity), REGION, stride) == expected
 
 

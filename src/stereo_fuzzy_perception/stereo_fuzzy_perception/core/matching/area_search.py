@@ -17,8 +17,10 @@ the object's size and motion into a box, and the box is projected into the left 
 A region is only trusted after the pair was matched in it (`region_problem`): the surface
 disparity predicted from the decision's plane tells which matches stand out of the surface. If
 some stand out in the region's outer ring (the object reaches past the region: it moved, or it
-is another object) or too few stand out inside (the object left), the pair is matched again on
-the whole image, so a wrong region costs time, never a wrong result.
+is another object), if matches pile up at the largest disparity searched (something taller
+than the tracked object), if too few stand out inside (the object left) or if those that do
+lie away from where the top face was (it moved), the pair is matched again on the whole image:
+a wrong region costs time, not a wrong point.
 
 ROS-free: numpy only.
 """
@@ -35,8 +37,10 @@ from stereo_fuzzy_perception.core.matching.disparity_range import MARGIN_PX, SUR
 from stereo_fuzzy_perception.core.matching.window_matcher import DisparityMap, MatchStatus
 
 OBJECT_AT_EDGE = 'object_at_edge'
+AT_DISPARITY_LIMIT = 'at_disparity_limit'
 OBJECT_LOST = 'object_lost'
-REGION_PROBLEMS = (OBJECT_AT_EDGE, OBJECT_LOST)
+OBJECT_MOVED = 'object_moved'
+REGION_PROBLEMS = (OBJECT_AT_EDGE, AT_DISPARITY_LIMIT, OBJECT_LOST, OBJECT_MOVED)
 
 RING_PX = 6
 """Width of the region's outer ring in which no match may stand out of the surface [px]."""
@@ -47,9 +51,13 @@ EDGE_SHARE = 0.02
 EDGE_COUNT = 4
 """Standing matches in the ring tolerated whatever their share."""
 
-FOUND_SHARE = 0.25
+FOUND_SHARE = 0.5
 """Smallest share of the top face's projected pixels (at the point stride) that must stand out
 inside the region for the object to count as still there [-]."""
+
+MOVED_SHARE = 1.0
+"""Largest distance between the median of the standing matches and the top face's projected
+centre, in the top face's projected extent [-]."""
 
 STANDING_SHARE = 0.5
 """A match stands out of the surface when its disparity exceeds the surface's by this share of
@@ -107,6 +115,7 @@ class SearchRegion:
         surface_plane: (a, b, c): the surface's disparity at rectified (u, v) is a u + b v + c.
         standing_px: Disparity above the surface's from which a match stands out [px].
         top_face_px: Pixels of the top face projected into the left image [px^2].
+        top_centre: (u, v) of the top face's projected centre [px].
     """
 
     roi: tuple[int, int, int, int]
@@ -115,6 +124,7 @@ class SearchRegion:
     surface_plane: tuple[float, float, float]
     standing_px: float
     top_face_px: float
+    top_centre: tuple[float, float] = (math.nan, math.nan)
 
 
 def _rectified_from_world(calibration: StereoCalibration,
@@ -228,7 +238,8 @@ def search_region(area: TrackedArea, calibration: StereoCalibration,
     excess = float(np.median(top_disparity - (plane[0] * top_u + plane[1] * top_v + plane[2])))
     standing = max(STANDING_SHARE * excess, NOISE_SIGMAS * area.disparity_sigma_px)
     return SearchRegion((x0, y0, x1 - x0, y1 - y0), low, high - low + 1, plane, standing,
-                        _quadrilateral_area(top_u, top_v))
+                        _quadrilateral_area(top_u, top_v),
+                        (float(top_u.mean()), float(top_v.mean())))
 
 
 def _quadrilateral_area(u: np.ndarray, v: np.ndarray) -> float:
@@ -250,7 +261,9 @@ def region_problem(disparity_map: DisparityMap, region: SearchRegion,
 
     Returns:
         OBJECT_AT_EDGE when matches in the region's outer ring stand out of the surface,
-        OBJECT_LOST when too few stand out inside it, None when the region holds the object.
+        AT_DISPARITY_LIMIT when matches pile up at the largest disparity searched,
+        OBJECT_LOST when too few stand out inside it, OBJECT_MOVED when those that do lie away
+        from the top face's projected centre; None when the region holds the object.
     """
     x, y, width, height = region.roi
     # the rows and columns the points keep: multiples of the stride
@@ -269,6 +282,17 @@ def region_problem(disparity_map: DisparityMap, region: SearchRegion,
     at_edge = int(np.count_nonzero(standing & ring))
     if at_edge > max(EDGE_COUNT, EDGE_SHARE * int(np.count_nonzero(valid & ring))):
         return OBJECT_AT_EDGE
-    if np.count_nonzero(standing) < FOUND_SHARE * region.top_face_px / point_stride ** 2:
+    largest = region.min_disparity + region.disparity_range - 1
+    at_limit = int(np.count_nonzero(valid & (np.nan_to_num(disparity) >= largest - 1)))
+    if at_limit > max(EDGE_COUNT, EDGE_SHARE * int(np.count_nonzero(valid))):
+        return AT_DISPARITY_LIMIT
+    found_v, found_u = np.nonzero(standing)
+    if len(found_u) < FOUND_SHARE * region.top_face_px / point_stride ** 2:
         return OBJECT_LOST
+    centre_u, centre_v = region.top_centre
+    if math.isfinite(centre_u) and math.hypot(
+            float(np.median(columns[found_u])) - centre_u,
+            float(np.median(rows[found_v])) - centre_v) > MOVED_SHARE * math.sqrt(
+                region.top_face_px):
+        return OBJECT_MOVED
     return None
