@@ -283,8 +283,12 @@ class CorrelationNode(Node):
             self.last_timings_ms = timings
             self.last_points = len(result.points)
             self._total_ms += sum(timings.values())
+        where = (f'in the tracked area {result.region.roi}, disparities '
+                 f'{result.region.min_disparity}+{result.region.disparity_range}'
+                 if result.region is not None else
+                 f'on the whole image ({result.region_problem or plan.reason})')
         self.get_logger().debug(
-            f'pair matched: {len(result.points)} points, '
+            f'pair matched {where}: {len(result.points)} points, '
             + ', '.join(f'{name} {ms:.1f} ms' for name, ms in timings.items()))
 
     def _derive_disparities(self, calibration: StereoCalibration) -> None:
