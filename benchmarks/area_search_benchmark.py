@@ -17,8 +17,15 @@ Success = best point within --tolerance-mm of the top face's centre (as table1_b
 Stage times are medians of the calls, against StereoBM (block 9, the whole-image disparities)
 on the same rectified pair. Markdown to stdout. Timings on a shared machine are noisy.
 
+--bags replays the committed bags instead (bags/*, each with its chain parameters as
+tests/test_whole_chain.py takes them), scene after scene as correlation_node would with
+roi.max_age_s long enough to track every scene's area into the next (a different object
+elsewhere): the points are compared with the whole image's, and each scene is also matched in
+its own decision's region.
+
     source scripts/env.sh
     nice python benchmarks/area_search_benchmark.py --scenes-per-type 10
+    nice python benchmarks/area_search_benchmark.py --bags
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ import statistics
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'src' / 'stereo_fuzzy_perception'))
@@ -84,7 +92,12 @@ def main() -> None:
     parser.add_argument('--scenes-per-type', type=int, default=10)
     parser.add_argument('--seed', type=int, default=3)
     parser.add_argument('--tolerance-mm', type=float, default=3.0)
+    parser.add_argument('--bags', action='store_true',
+                        help='replay the committed bags in both modes instead')
     args = parser.parse_args()
+    if args.bags:
+        replay_bags()
+        return
     load = os.getloadavg()[0]
     stride = demo_point_stride()
     tracking = TrackingConfig()
@@ -182,6 +195,112 @@ def report(rows: list[dict[str, object]], tolerance: float, stride: int, load: f
               f'| {statistics.median(float(r["bm_ms"]) for r in rows):.1f} '  # type: ignore[arg-type]
               f'| {statistics.median(float(r["region_share"]) for r in kept_rows):.2f} '  # type: ignore[arg-type]
               f'| {statistics.median(int(r["region_disparities"]) for r in kept_rows):.0f} |')  # type: ignore[call-overload]
+
+
+def bag_scenes(bag: Path) -> list[tuple[float, np.ndarray, np.ndarray, Any]]:
+    """Return the bag's pairs in stamp order: (stamp [s], left grey, right grey, calibration)."""
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import CameraInfo, Image
+    from stereo_fuzzy_perception.bag.bag_io import read_messages
+    from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+    from stereo_fuzzy_perception.nodes.conversions import (
+        camera_info_to_calibration,
+        image_to_array,
+        stamp_to_ns,
+    )
+
+    types = {'/left/image_raw': Image, '/right/image_raw': Image,
+             '/left/camera_info': CameraInfo, '/right/camera_info': CameraInfo}
+    scenes: dict[int, dict[str, Any]] = {}
+    for message in read_messages(bag, types):
+        decoded = deserialize_message(message.data, types[message.topic])
+        scenes.setdefault(stamp_to_ns(decoded.header.stamp), {})[message.topic] = decoded
+    pairs = []
+    for stamp in sorted(scenes):
+        scene = scenes[stamp]
+        left, right = scene['/left/image_raw'], scene['/right/image_raw']
+        pairs.append((stamp * 1e-9, to_gray(image_to_array(left), left.encoding),
+                      to_gray(image_to_array(right), right.encoding), StereoCalibration(
+                          camera_info_to_calibration(scene['/left/camera_info']),
+                          camera_info_to_calibration(scene['/right/camera_info']))))
+    return pairs
+
+
+def replay_bags() -> None:
+    """Match every committed bag's scenes tracked and whole; print a table."""
+    import dataclasses
+
+    import yaml
+    from stereo_fuzzy_perception.core.matching.area_tracker import AreaTracker
+    from stereo_fuzzy_perception.core.matching.disparity_range import workspace_disparity_range
+    from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
+    from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
+    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+
+    print("\n| bag | scenes | previous scene's region: kept / tried, same point as the whole "
+          "image | own region: kept / tried, distance to the whole image's point [mm] | "
+          "where (previous scene's region) |")
+    print('|---|---:|---:|---:|---|')
+    for bag in sorted(path for path in (ROOT / 'bags').iterdir()
+                      if (path / 'metadata.yaml').exists()):
+        own_params = bag / 'chain_params.yaml'
+        params = yaml.safe_load((own_params if own_params.exists()
+                                 else ROOT / 'chain' / 'demo_params.yaml').read_text())
+        correlation = params['correlation_node']['ros__parameters']
+        fuzzy = params.get('fuzzy_best_point_node', {}).get('ros__parameters', {})
+        rig = StereoRig(**fuzzy.get('rig', {}))
+        pose = rig.world_from_left_camera()
+        pipeline = StereoMatchingPipeline(point_stride=int(correlation.get('point_stride', 1)))
+        chooser = BestPointChooser.create(fuzzy.get('selector', 'fuzzy_fitted'), AreaConfig(),
+                                          rig)
+        area_config = AreaConfig()
+        tracker = AreaTracker(dataclasses.replace(TrackingConfig(), max_age_s=60.0,
+                                                  full_frame_every=10**6))
+        where: dict[str, int] = {}
+        same = tried = own_kept = own_tried = 0
+        distances: list[float] = []
+        pairs = bag_scenes(bag)
+        for stamp, left, right, calibration in pairs:
+            derived = workspace_disparity_range(calibration, pose, area_config.workspace_min,
+                                                area_config.workspace_max)
+            full_range = (derived.min_disparity, derived.disparity_range)
+            pipeline.config = MatcherConfig(min_disparity=full_range[0],
+                                            disparity_range=full_range[1])
+            whole = pipeline.process(left, right, calibration)
+            decided = chooser.decide(whole.points, whole.rectified.left, whole.rectified.right)
+            plan = tracker.plan(stamp, calibration, pose, full_range)
+            if plan.region is not None:
+                tracked = pipeline.process(left, right, calibration, region=plan.region)
+                again = chooser.decide(tracked.points, tracked.rectified.left,
+                                       tracked.rectified.right)
+                tried += 1
+                reason = tracked.region_problem or 'kept'
+                where[reason] = where.get(reason, 0) + 1
+                first, second = again.best_point_world, decided.best_point_world
+                same += int((first is None and second is None) or (
+                    first is not None and second is not None
+                    and bool(np.allclose(first, second, atol=1e-4))))
+            area = tracked_area(decided)
+            tracker.observe(None if area is None else dataclasses.replace(area, stamp_s=stamp))
+            if area is None:
+                continue
+            try:
+                region = search_region(area, calibration, pose, full_range,
+                                       TrackingConfig().margin_object_sizes,
+                                       TrackingConfig().margin_m)
+            except AreaProjectionError:
+                continue
+            own = pipeline.process(left, right, calibration, region=region)
+            own_tried += 1
+            own_kept += int(not own.region_problem)
+            point = chooser.decide(own.points, own.rectified.left,
+                                   own.rectified.right).best_point_world
+            if point is not None and decided.best_point_world is not None:
+                distances.append(1e3 * float(np.linalg.norm(point - decided.best_point_world)))
+        spread = (f'{min(distances):.2f}-{max(distances):.2f}' if distances else '-')
+        print(f'| {bag.name} | {len(pairs)} | {where.get("kept", 0)} / {tried}, {same} / {tried} '
+              f'| {own_kept} / {own_tried}, {spread} '
+              f'| {", ".join(f"{key}: {count}" for key, count in sorted(where.items()))} |')
 
 
 if __name__ == '__main__':
