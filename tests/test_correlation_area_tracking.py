@@ -188,3 +188,26 @@ def test_whole_image_when_asked_every_pair_or_when_the_decision_is_stale(
     h.publish_and_wait_processed(block_pair(stamp_sec=pair_stamp))
     assert h.node.searched[reason] == 1, dict(h.node.searched)
     assert h.node.searched['area'] == 0
+
+
+@pytest.mark.parametrize('spoil', ['nan_border', 'no_point', 'zero_normal', 'negative_top'])
+def test_a_malformed_or_pointless_decision_is_not_tracked_and_the_node_keeps_matching(
+        tracking, spoil):
+    from geometry_msgs.msg import Point, Vector3
+
+    h = tracking()
+    h.decide(block_decision(h.node, stamp_sec=1))
+    msg = block_decision(h.node, stamp_sec=1)
+    if spoil == 'nan_border':
+        msg.border_points[2] = Point(x=float('nan'), y=0.0, z=0.0)
+    elif spoil == 'no_point':
+        msg.has_best_point, msg.status = False, 'no_object'
+    elif spoil == 'zero_normal':
+        msg.surface_normal = Vector3(x=0.0, y=0.0, z=0.0)
+    else:
+        msg.top_height = -0.1
+    h.decisions.publish(msg)
+    wait_until(lambda: h.node.tracker._area is None, TIMEOUT,
+               'the node to drop the tracked area', h.executor)
+    h.publish_and_wait_processed(block_pair(stamp_sec=1))
+    assert h.node.searched['no_area'] == 1 and h.node.searched['area'] == 0

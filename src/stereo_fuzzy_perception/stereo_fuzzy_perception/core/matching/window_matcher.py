@@ -32,20 +32,21 @@ that keep its right window inside the image (StereoBM instead gives up on the le
 min_disparity + disparity_range columns); the left-right check rejects it when its true partner
 has left the image.
 
-The speed comes from one C kernel (window_matcher_kernel.c, built by colcon as the extension
-_window_matcher_kernel), reached by one call that takes the numpy arrays: it prepares both
-images (float32 rows padded by reflection, window means and variances from running sums), so
-each (pixel, disparity) cell needs only the cross term sum(f w), kept as running column sums
-(updated with one new and one old row) and running window sums along the row: O(1) per cell
-whatever the window size. The disparity loop is innermost and contiguous (the right image is
-stored with its columns reversed for that), and bands of rows run on POSIX threads with the GIL
-released. For 8-bit images the sums are of integers below 2^24 and therefore exact in float32.
-Working memory is kept between calls (_ScratchMemory), and so are the output arrays once the
-caller has dropped the previous result, so that a pair does not fault in fresh pages.
+The speed comes from one C kernel (window_matcher_kernel.h and its C files, built by colcon as
+the extension _window_matcher_kernel), reached by one call that takes the numpy arrays: it
+prepares both images (float32 rows padded by reflection, window means and variances from running
+sums), so each (pixel, disparity) cell needs only the cross term sum(f w), kept as running
+column sums (updated with one new and one old row) and running window sums along the row: O(1)
+per cell whatever the window size. The disparity loop is innermost and contiguous (the right
+image is stored with its columns reversed for that), and bands of rows run on POSIX threads with
+the GIL released. For 8-bit images the sums are of integers below 2^24 and therefore exact in
+float32. Working memory is kept between calls (_ScratchMemory), and so are the output arrays
+once the caller has dropped the previous result, so that a pair does not fault in fresh pages.
 
-ROI ("correlation area", Fig. 2 of the chapter): only pixels inside `roi` are matched, which
-divides the work by the share of the image it covers. Preprocessing (Fig. 8): `edges` correlates
-Sobel gradient magnitudes, `binary` correlates Otsu-thresholded images.
+ROI ("correlation area", Fig. 2 of the chapter): only pixels inside `roi` are matched and only
+its rows are prepared, which divides the work by the share of the image it covers (rows outside
+it, widened by the window's radius, are never read: they may hold anything). Preprocessing (Fig.
+8): `edges` correlates Sobel gradient magnitudes, `binary` correlates Otsu-thresholded images.
 
 ROS-free: numpy, OpenCV and the C kernel only.
 """
@@ -77,8 +78,8 @@ try:
 except ImportError as error:  # pragma: no cover - a checkout that was never built
     raise ImportError(
         'stereo_fuzzy_perception.core.matching._window_matcher_kernel (the matcher kernel, '
-        'window_matcher_kernel.c) is not built: run scripts/setup.sh, or colcon build in '
-        'ros2_ws') from error
+        'window_matcher_kernel.h and its C files) is not built: run scripts/setup.sh, or colcon '
+        'build in ros2_ws') from error
 
 # The settings, errors and results are defined in matcher_config.py and the preprocessing in
 # preprocessing.py; they are part of this module's interface, which most callers import.
