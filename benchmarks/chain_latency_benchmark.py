@@ -551,6 +551,8 @@ def main() -> None:
     parser.add_argument('--no-tracking', action='store_true',
                         help="turn correlation_node's tracking of the decided area off")
     parser.add_argument('--log-dir', help="where the nodes' logs go (default: a temp folder)")
+    parser.add_argument('--latencies', metavar='CSV',
+                        help='also write every decided pair: rate, index, decision latency [ms]')
     args = parser.parse_args()
     load_before = os.getloadavg()[0]
     results = run(args)
@@ -561,6 +563,12 @@ def main() -> None:
     params += (f', {args.pairs_per_scene} pairs per scene, tracking '
                + ('off' if args.no_tracking else 'on'))
     print_tables(results, params, machine)
+    if args.latencies:
+        with open(args.latencies, 'w', encoding='utf-8') as output:
+            output.write('rate_hz,pair,decision_latency_ms\n')
+            for r in results:
+                output.writelines(f'{r.rate_hz:g},{index},{latency:.2f}\n'
+                                  for index, latency in enumerate(r.decision_latency_ms))
 
 
 if __name__ == '__main__':
