@@ -52,11 +52,12 @@ fi
 # Python sources are symlinked by --symlink-install, so editing a .py file needs no rebuild.
 build_inputs=$(cd "$root/src" && find . -type f \( -name package.xml -o -name setup.py \
   -o -name setup.cfg -o -name CMakeLists.txt -o -name '*.msg' -o -name '*.action' \
-  -o -name '*.srv' -o -name '*.c' -o -path '*/resource/*' -o -path '*/config/*' \) -newer /dev/null | sort)
+  -o -name '*.srv' -o -name '*.c' -o -name '*.h' -o -path '*/resource/*' -o -path '*/config/*' \) -newer /dev/null | sort)
 build_digest=$( (cd "$root/src" && echo "$build_inputs" && cat $build_inputs; echo "$requirements_digest") \
   | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$workspace/install/.build.sha256" 2>/dev/null)" != "$build_digest" ]; then
-  # The matcher's kernel (window_matcher_kernel.c) is compiled as a Python extension.
+  # The matcher's kernel (window_matcher_kernel.h lists its .c files) is compiled as a Python
+  # extension.
   python_headers=$("$venv/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')
   if ! command -v "${CC:-gcc}" >/dev/null || [ ! -f "$python_headers/Python.h" ]; then
     echo "[setup] building the matcher's C kernel needs a C compiler (${CC:-gcc}) and the Python" \

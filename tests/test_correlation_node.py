@@ -6,111 +6,24 @@ and messages, never on fixed sleeps.
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import pytest
+from correlation_harness import (
+    BASELINE,
+    FOCAL,
+    HEIGHT,
+    OVERHEAD_RIG,
+    SHIFT,
+    TIMEOUT,
+    WIDTH,
+    Harness,
+    camera,
+    stereo_pair,
+    textured_pair,
+)
 from ros_waiting import wait_until
 
 pytestmark = pytest.mark.ros
-
-WIDTH, HEIGHT = 160, 120
-FOCAL, BASELINE = 200.0, 0.1  # [px], [m]
-SHIFT = 8  # [px] disparity of the synthetic pair
-TIMEOUT = 60.0  # [s] generous: DDS discovery, and a numba compile when its cache is cold
-
-
-def camera(width: int = WIDTH, height: int = HEIGHT, tx: float = -FOCAL * BASELINE,
-           k_zero: bool = False):
-    from stereo_fuzzy_perception.core.camera_model import CameraCalibration
-
-    K = np.array([[FOCAL, 0.0, width / 2], [0.0, FOCAL, height / 2], [0.0, 0.0, 1.0]])
-    P = np.hstack([K, [[tx], [0.0], [0.0]]])
-    return CameraCalibration(width=width, height=height, K=np.zeros((3, 3)) if k_zero else K,
-                             D=np.zeros(5), P=P, frame_id='left_camera_optical_frame')
-
-
-def textured_pair(width: int = WIDTH, height: int = HEIGHT) -> tuple[np.ndarray, np.ndarray]:
-    """A rectified pair with a constant disparity SHIFT: left x matches right x - SHIFT."""
-    rng = np.random.default_rng(0)
-    scene = cv2.GaussianBlur(rng.uniform(0, 255, (height, width + SHIFT)).astype(np.float32),
-                             (0, 0), 1.2)
-    scene = np.clip(128 + 3 * (scene - scene.mean()), 0, 255).astype(np.uint8)
-    return scene[:, :width].copy(), scene[:, SHIFT:SHIFT + width].copy()
-
-
-def stereo_pair(stamp_sec: int = 1, encoding: str = 'mono8', right_width: int = WIDTH,
-                left_k_zero: bool = False, right_tx: float = -FOCAL * BASELINE):
-    from sensor_msgs.msg import Image
-    from std_msgs.msg import Header
-    from stereo_fuzzy_perception.nodes.conversions import (
-        array_to_image,
-        calibration_to_camera_info,
-    )
-
-    from stereo_fuzzy_msgs.msg import StereoPair
-
-    header = Header(frame_id='left_camera_optical_frame')
-    header.stamp.sec = stamp_sec
-    left, right = textured_pair()
-    if right_width != WIDTH:
-        right = textured_pair(width=right_width)[1]
-    pair = StereoPair(header=header)
-    if encoding == 'yuv422':
-        pair.left_image = Image(header=header, width=WIDTH, height=HEIGHT, encoding=encoding,
-                                step=2 * WIDTH, data=bytes(2 * WIDTH * HEIGHT))
-        pair.right_image = pair.left_image
-    else:
-        pair.left_image = array_to_image(left, encoding, header)
-        pair.right_image = array_to_image(right, encoding, header)
-    pair.left_info = calibration_to_camera_info(camera(k_zero=left_k_zero, tx=0.0), header)
-    pair.right_info = calibration_to_camera_info(camera(width=right_width, tx=right_tx), header)
-    return pair
-
-
-class Harness:
-    """The node under test plus a probe node that publishes pairs and collects outputs."""
-
-    def __init__(self, context, **overrides):
-        from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.parameter import Parameter
-        from stereo_fuzzy_perception.nodes import qos
-        from stereo_fuzzy_perception.nodes.correlation_node import CorrelationNode
-
-        from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
-
-        parameters = [Parameter(name, value=value) for name, value in overrides.items()]
-        self.node = CorrelationNode(context=context, parameter_overrides=parameters)
-        self.probe = __import__('rclpy').create_node('correlation_probe', context=context)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.node)
-        self.executor.add_node(self.probe)
-        self.matches: list = []
-        self.diagnostics: list = []
-        self.publisher = self.probe.create_publisher(StereoPair, 'pair', qos.RESULTS)
-        self.probe.create_subscription(StereoMatches, 'matches', self.matches.append,
-                                       qos.RESULTS)
-        self.probe.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics.append,
-                                       qos.DIAGNOSTICS)
-        wait_until(lambda: self.publisher.get_subscription_count() > 0
-                   and self.node.matches_publisher.get_subscription_count() > 0,
-                   TIMEOUT, 'the probe and the node to discover each other', self.executor)
-
-    def publish_and_wait_processed(self, pair) -> None:
-        before = self.node.processed + sum(self.node.dropped.values())
-        self.publisher.publish(pair)
-        wait_until(lambda: self.node.processed + sum(self.node.dropped.values()) > before,
-                   TIMEOUT, 'the node to process or drop the pair', self.executor)
-
-    def latest_values(self) -> dict[str, str]:
-        status = self.diagnostics[-1].status[0]
-        return {item.key: item.value for item in status.values}
-
-    def close(self) -> None:
-        self.node.destroy_node()
-        self.probe.destroy_node()
-        self.executor.shutdown()
-
 
 @pytest.fixture
 def harness(ros_context):
@@ -254,12 +167,6 @@ def test_input_queue_depth_keeps_a_burst_that_fits(harness):
     wait_until(lambda: len(h.matches) == 5, TIMEOUT, 'all five pairs matched', h.executor)
     assert [message.header.stamp.sec for message in h.matches] == [1, 2, 3, 4, 5]
     assert h.node.dropped['superseded'] == 0
-
-
-# A rig 2.5 m straight above the workspace sees its floor at f B / Z = 8 px, the pair's SHIFT.
-OVERHEAD_RIG = {'rig.alpha_deg': 0.0, 'rig.theta_deg': 0.0, 'rig.x0_m': 0.2, 'rig.y0_m': 0.15,
-                'rig.z0_m': FOCAL * BASELINE / SHIFT, 'rig.baseline_m': BASELINE,
-                'rig.vergence_deg': 0.0}
 
 
 def test_disparity_range_0_derives_the_search_from_the_rig_and_the_workspace(harness):

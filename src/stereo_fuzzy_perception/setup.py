@@ -22,8 +22,12 @@ setup(
     # round alike and results do not depend on the CPU. -fno-math-errno, -fno-trapping-math:
     # sqrt and branch-free selects vectorise (neither changes a result: errno and FP exception
     # flags are never read). -pthread: its worker threads.
+    # Its translation units share window_matcher_kernel.h (which lists them).
     ext_modules=[Extension(package_name + '.core.matching._window_matcher_kernel',
-                           sources=[package_name + '/core/matching/window_matcher_kernel.c'],
+                           sources=[f'{package_name}/core/matching/{unit}.c' for unit in (
+                               'window_matcher_kernel', 'matcher_prepare', 'matcher_correlate',
+                               'matcher_threads', 'matcher_triangulate')],
+                           depends=[package_name + '/core/matching/window_matcher_kernel.h'],
                            extra_compile_args=['-O3', '-ffp-contract=off', '-fno-math-errno',
                                                '-fno-trapping-math', '-pthread'],
                            extra_link_args=['-pthread'])],

@@ -4,6 +4,10 @@ Thin adapter around stereo_matching.StereoMatchingPipeline: the subscription onl
 newest pair (a depth-1 hand-off); a worker thread rectifies, matches and triangulates it, so the
 executor never blocks and latency stays bounded; pairs replaced before the worker took them are
 counted as dropped (`superseded`).
+
+It also subscribes the fuzzy stage's decisions (`best_point/decision`) and matches each pair
+where the newest decision found the object (core/matching/area_tracker.py, parameters roi.*);
+where each pair was matched, and why not in the area, is counted on /diagnostics.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from collections import Counter, deque
 from typing import Any
 
 import cv2
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -22,16 +27,27 @@ from sensor_msgs.msg import PointCloud2
 from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 from stereo_msgs.msg import DisparityImage
 
-from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
+from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches, StereoPair
 from stereo_fuzzy_perception.core.camera_model import CalibrationError, StereoCalibration
 from stereo_fuzzy_perception.core.frame_transforms import RigPoseError
 from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError
+from stereo_fuzzy_perception.core.matching.area_search import REGION_PROBLEMS
+from stereo_fuzzy_perception.core.matching.area_tracker import (
+    FULL_FRAME_REASONS,
+    AreaTracker,
+    SearchPlan,
+)
 from stereo_fuzzy_perception.core.matching.disparity_range import DisparityRangeError
 from stereo_fuzzy_perception.core.matching.rectification import RectificationError
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
 from stereo_fuzzy_perception.core.matching.window_matcher import MatcherInputError, warm_up
 from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
 from stereo_fuzzy_perception.nodes import qos, topic_names
+from stereo_fuzzy_perception.nodes.area_conversions import (
+    decision_points,
+    decision_to_tracked_area,
+    stamp_seconds,
+)
 from stereo_fuzzy_perception.nodes.conversions import (
     ImageSizeError,
     check_pair_size,
@@ -44,6 +60,12 @@ from stereo_fuzzy_perception.nodes.correlation_parameters import CorrelationSett
 
 DROP_REASONS = ('superseded', 'image_too_large', 'calibration', 'size_mismatch', 'encoding',
                 'matcher_input', 'opencv', 'internal')
+DECISION_TOPIC = topic_names.DECISION
+POSE_MISMATCH = 'pose_mismatch'
+POSE_TOLERANCE_M = 0.005
+"""Largest distance between a decision's best point in the camera frame and its world point
+placed with this node's camera pose; more means the two nodes place the camera differently,
+and the area is not tracked [m]."""
 
 
 class CorrelationNode(Node):
@@ -54,6 +76,12 @@ class CorrelationNode(Node):
         self.settings = declare_settings(self, CorrelationSettings, apply=self._apply_settings)
         self.pipeline = StereoMatchingPipeline(self.settings.matcher_config(),
                                                self.settings.point_stride)
+        self.tracker = AreaTracker(self.settings.roi.tracking_config())
+        # The camera pose in world for the last calibration seen (None: unknown), to place the
+        # decisions' areas in the image.
+        self._pose: tuple[StereoCalibration, np.ndarray | None] | None = None
+        self.searched: Counter[str] = Counter(dict.fromkeys(
+            ('area', *FULL_FRAME_REASONS, *REGION_PROBLEMS, POSE_MISMATCH), 0))
         # disparity_range 0: the range derived for the last calibration seen
         self._derived_for: StereoCalibration | None = None
         input_qos = QoSProfile(depth=qos.RESULTS.depth, history=qos.RESULTS.history,
@@ -85,6 +113,7 @@ class CorrelationNode(Node):
         self._worker = threading.Thread(target=self._work, name='correlation_worker',
                                         daemon=True)
         self._worker.start()
+        self.create_subscription(FuzzyDecision, DECISION_TOPIC, self._on_decision, qos.RESULTS)
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(
             f'correlation_node started: {self.pipeline.config.method}, window '
@@ -98,6 +127,8 @@ class CorrelationNode(Node):
     def _apply_settings(self, settings: CorrelationSettings) -> None:
         self.settings = settings
         self._derived_for = None
+        self._pose = None
+        self.tracker.config = settings.roi.tracking_config()
         self.pipeline.config = settings.matcher_config()
         self.pipeline.point_stride = settings.point_stride
         with self._condition:
@@ -117,6 +148,43 @@ class CorrelationNode(Node):
                     throttle_duration_sec=5.0)
             self._pending.append(pair)
             self._condition.notify()
+
+    def _on_decision(self, msg: FuzzyDecision) -> None:
+        """Track the decision's correlation area (or search everywhere when it found none)."""
+        try:
+            area = decision_to_tracked_area(msg)
+            known = self._pose
+            if area is not None and known is not None and known[1] is not None:
+                world, camera = decision_points(msg)
+                placed = np.linalg.inv(known[1]) @ np.append(world, 1.0)
+                if float(np.linalg.norm(placed[:3] - camera)) > POSE_TOLERANCE_M:
+                    area = None
+                    with self._condition:
+                        self.searched[POSE_MISMATCH] += 1
+                    self.get_logger().warning(
+                        "a decision places its best point elsewhere than this node's camera "
+                        'pose (rig_pose_file / rig.*) does: not tracking its area (give both '
+                        'nodes the same pose)', throttle_duration_sec=60.0)
+            self.tracker.observe(area)
+        except Exception as error:  # a bad decision must not stop the node: search everywhere
+            self.tracker.observe(None)
+            self.get_logger().error(f'decision not tracked: {error!r}',
+                                    throttle_duration_sec=self.settings.error_log_period_s)
+
+    def _plan(self, pair: StereoPair, calibration: StereoCalibration) -> SearchPlan:
+        """Return where this pair is matched (the tracked area's region or the whole image)."""
+        known = self._pose
+        if known is None or not (known[0].left.same_as(calibration.left)
+                                 and known[0].right.same_as(calibration.right)):
+            try:
+                pose: np.ndarray | None = self.settings.pose_source().world_from_camera(
+                    calibration)
+            except RigPoseError:
+                pose = None
+            known = self._pose = (calibration, pose)
+        config = self.pipeline.config
+        return self.tracker.plan(stamp_seconds(pair.header.stamp), calibration, known[1],
+                                 (config.min_disparity, config.disparity_range))
 
     # --- worker -------------------------------------------------------------------------------
 
@@ -161,11 +229,15 @@ class CorrelationNode(Node):
                 raise RectificationError(
                     f'left image is {left.shape[1]}x{left.shape[0]} but right image is '
                     f'{right.shape[1]}x{right.shape[0]}')
+            plan = self._plan(pair, calibration)
             # A disparity subscriber gets every row; otherwise only the rows that
             # point_stride publishes are matched.
             result = self.pipeline.process(
                 left, right, calibration,
-                full_disparity=self.disparity_publisher.get_subscription_count() > 0)
+                full_disparity=self.disparity_publisher.get_subscription_count() > 0,
+                region=plan.region)
+            if result.region_problem:
+                self.tracker.region_failed(result.region_problem)
         except ImageSizeError as error:
             self._drop('image_too_large', str(error))
             return
@@ -207,12 +279,17 @@ class CorrelationNode(Node):
             return
         timings = dict(result.timings_ms, publish=1e3 * (time.perf_counter() - start))
         with self._condition:
+            self.searched[result.region_problem or plan.reason or 'area'] += 1
             self.processed += 1
             self.last_timings_ms = timings
             self.last_points = len(result.points)
             self._total_ms += sum(timings.values())
+        where = (f'in the tracked area {result.region.roi}, disparities '
+                 f'{result.region.min_disparity}+{result.region.disparity_range}'
+                 if result.region is not None else
+                 f'on the whole image ({result.region_problem or plan.reason})')
         self.get_logger().debug(
-            f'pair matched: {len(result.points)} points, '
+            f'pair matched {where}: {len(result.points)} points, '
             + ', '.join(f'{name} {ms:.1f} ms' for name, ms in timings.items()))
 
     def _derive_disparities(self, calibration: StereoCalibration) -> None:
@@ -251,6 +328,10 @@ class CorrelationNode(Node):
                 'pairs received': self.received,
                 'pairs processed': self.processed,
                 'pairs waiting': len(self._pending),
+                'pairs matched in the tracked area': self.searched['area'],
+                **{f'pairs matched whole: {reason}': self.searched[reason]
+                   for reason in (*FULL_FRAME_REASONS, *REGION_PROBLEMS)},
+                f'decisions not tracked: {POSE_MISMATCH}': self.searched[POSE_MISMATCH],
                 **self.pair_sequence.report(topic_names.PAIR),
                 **{f'dropped {reason}': count for reason, count in self.dropped.items()},
                 'last valid points': self.last_points,

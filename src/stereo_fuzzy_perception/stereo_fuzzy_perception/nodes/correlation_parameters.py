@@ -18,6 +18,7 @@ from stereo_fuzzy_parameters.spec import parameter, parameter_group, parameter_s
 from stereo_fuzzy_parameters.world import WorldSettings
 
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+from stereo_fuzzy_perception.core.matching.area_tracker import TrackingConfig
 from stereo_fuzzy_perception.core.matching.disparity_range import (
     MARGIN_PX,
     workspace_disparity_range,
@@ -32,13 +33,18 @@ from stereo_fuzzy_perception.core.rig_pose import CameraPoseSource
 from stereo_fuzzy_perception.nodes.rig_parameters import RigSettings
 
 _DEFAULT = MatcherConfig()
+_TRACKING = TrackingConfig()
 AUTO_DISPARITY_RANGE = 0
 """disparity_range value that asks for the range derived from the geometry."""
 
 
 @dataclass(frozen=True)
 class RoiSettings:
-    """The correlation area (Fig. 2) in the left rectified image; 0 width or height = all."""
+    """The correlation area (Fig. 2) in the left rectified image; 0 width or height = all.
+
+    With the whole image (the default) and `track` on, each pair is matched where the previous
+    decision found the object (core/matching/area_tracker.py); a fixed area turns that off.
+    """
 
     x: int = parameter(0, 'Correlation area (Fig. 2): left column [px]', 0, 65535)
     y: int = parameter(0, 'Correlation area: top row [px]', 0, 65535)
@@ -46,6 +52,29 @@ class RoiSettings:
                            0, 65535)
     height: int = parameter(0, 'Correlation area: height [px]; 0 matches the whole image',
                             0, 65535)
+    track: bool = parameter(
+        _TRACKING.enabled, 'Match each pair only around the correlation area of the newest '
+        'decision (best_point/decision) with a narrowed disparity range; a pair whose matches '
+        "show the object at the region's edge or not at all is matched again on the whole "
+        'image')
+    full_frame_every: int = parameter(
+        _TRACKING.full_frame_every, 'While tracking, match every n-th pair on the whole image '
+        '(1 = every pair)', 1, 100000)
+    max_age_s: float = parameter(
+        _TRACKING.max_age_s, 'Oldest decision tracked, by pair stamps [s]; older: whole image',
+        0.0, 60.0)
+    margin_object_sizes: float = parameter(
+        _TRACKING.margin_object_sizes, 'Margin of the tracked region on each side, in the '
+        "object's extents [-] (its motion between decisions)", 0.0, 10.0)
+    margin_m: float = parameter(
+        _TRACKING.margin_m, 'Smallest margin of the tracked region on each side [m]', 0.0, 1.0)
+
+    def tracking_config(self) -> TrackingConfig:
+        """Return the tracking settings (tracking only while the area is the whole image)."""
+        return TrackingConfig(
+            enabled=self.track and (self.width == 0 or self.height == 0),
+            full_frame_every=self.full_frame_every, max_age_s=self.max_age_s,
+            margin_object_sizes=self.margin_object_sizes, margin_m=self.margin_m)
 
 
 @dataclass(frozen=True)
@@ -139,13 +168,21 @@ class CorrelationSettings:
             DisparityRangeError: When no part of the box is in view of both cameras.
             RigPoseError: When the pose file or the rig's baseline does not fit the calibration.
         """
-        pose = CameraPoseSource.from_settings(self.rig.stereo_rig(), self.rig_pose_file,
-                                              self.world.world_frame)
-        derived = workspace_disparity_range(calibration, pose.world_from_camera(calibration),
+        derived = workspace_disparity_range(calibration,
+                                            self.pose_source().world_from_camera(calibration),
                                             self.world.workspace_min_m,
                                             self.world.workspace_max_m)
         return dataclasses.replace(self.matcher_config(), min_disparity=derived.min_disparity,
                                    disparity_range=derived.disparity_range)
+
+    def pose_source(self) -> CameraPoseSource:
+        """Return where the left camera's pose in world comes from (pose file or rig.*).
+
+        Raises:
+            RigPoseError: When the pose file is unusable.
+        """
+        return CameraPoseSource.from_settings(self.rig.stereo_rig(), self.rig_pose_file,
+                                              self.world.world_frame)
 
     def problem(self) -> str | None:
         """Return why these settings make no valid matcher configuration, or None."""

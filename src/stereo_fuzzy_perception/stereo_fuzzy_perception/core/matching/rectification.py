@@ -77,6 +77,25 @@ class RectificationMaps:
                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
 
+    def apply_rows(self, image: np.ndarray, first: int, stop: int,
+                   out: np.ndarray | None) -> np.ndarray:
+        """Rectify rows first..stop-1 of `image` into `out` (made when None or of another shape).
+
+        Returns:
+            `out` (or `image` itself when already rectified): a full-size image of which only
+            those rows are this image's; the others hold whatever `out` held.
+        """
+        if self.map_x is None or self.map_y is None:
+            return image
+        shape = self.map_x.shape[:2] + image.shape[2:]
+        if out is None or out.shape != shape or out.dtype != image.dtype:
+            out = np.zeros(shape, image.dtype)
+        # A block of whole rows of a C-contiguous array is contiguous: remap writes into it.
+        cv2.remap(image, self.map_x[first:stop], self.map_y[first:stop], cv2.INTER_LINEAR,
+                  dst=out[first:stop], borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        return out
+
+
 def rectification_maps(camera: CameraCalibration) -> RectificationMaps:
     """Compute the remap maps of one camera from K, D, R, P (fixed-point maps, fast remap).
 
@@ -109,6 +128,7 @@ class StereoRectifier:
         self._maps: tuple[RectificationMaps, RectificationMaps] | None = None
         self._rectified: StereoCalibration | None = None
         self.map_builds = 0
+        self._row_buffers = threading.local()
 
     def _maps_for(self, calibration: StereoCalibration
                   ) -> tuple[tuple[RectificationMaps, RectificationMaps], StereoCalibration]:
@@ -124,6 +144,22 @@ class StereoRectifier:
                 self._calibration = calibration
                 self.map_builds += 1
             return self._maps, self._rectified
+
+    @staticmethod
+    def check_sizes(left: np.ndarray, right: np.ndarray,
+                      calibration: StereoCalibration) -> None:
+        """Check that each image has its calibration's size.
+
+        Raises:
+            RectificationError: When an image's size differs from its calibration.
+        """
+        for side, image, camera in (('left', left, calibration.left),
+                                    ('right', right, calibration.right)):
+            height, width = image.shape[:2]
+            if (width, height) != (camera.width, camera.height):
+                raise RectificationError(
+                    f'{side} image is {width}x{height} but its calibration is '
+                    f'{camera.width}x{camera.height}')
 
     def rectify(self, left: np.ndarray, right: np.ndarray, calibration: StereoCalibration
                 ) -> tuple[np.ndarray, np.ndarray, StereoCalibration]:
@@ -141,12 +177,23 @@ class StereoRectifier:
             CalibrationError: When the calibration is unusable.
             RectificationError: When an image's size differs from its calibration.
         """
-        for side, image, camera in (('left', left, calibration.left),
-                                    ('right', right, calibration.right)):
-            height, width = image.shape[:2]
-            if (width, height) != (camera.width, camera.height):
-                raise RectificationError(
-                    f'{side} image is {width}x{height} but its calibration is '
-                    f'{camera.width}x{camera.height}')
+        self.check_sizes(left, right, calibration)
         (left_maps, right_maps), rectified = self._maps_for(calibration)
         return left_maps.apply(left), right_maps.apply(right), rectified
+
+    def rectify_rows(self, left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
+                     first: int, stop: int
+                     ) -> tuple[np.ndarray, np.ndarray, StereoCalibration]:
+        """Rectify only rows first..stop-1 of a raw pair (what a region of interest reads).
+
+        The rectified images are buffers this rectifier keeps for the next call (in the
+        calling thread): rows outside first..stop-1 hold an earlier pair's pixels, and the
+        images are overwritten by the next call. Otherwise as `rectify`.
+        """
+        self.check_sizes(left, right, calibration)
+        (left_maps, right_maps), rectified = self._maps_for(calibration)
+        buffers = getattr(self._row_buffers, 'images', (None, None))
+        images = (left_maps.apply_rows(left, first, stop, buffers[0]),
+                  right_maps.apply_rows(right, first, stop, buffers[1]))
+        self._row_buffers.images = images
+        return images[0], images[1], rectified

@@ -6,6 +6,7 @@ the same call. ROS-free: numpy, OpenCV and the matcher's C kernel only.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -13,6 +14,7 @@ import numpy as np
 
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.matching.area_search import SearchRegion, region_problem
 from stereo_fuzzy_perception.core.matching.rectification import StereoRectifier
 from stereo_fuzzy_perception.core.matching.triangulation import triangulate
 from stereo_fuzzy_perception.core.matching.window_matcher import DisparityMap, MatcherConfig, match
@@ -26,13 +28,19 @@ class StereoMatchResult:
         rectified: Calibration of the rectified images (K = P[:3, :3], D = 0, R, P).
         disparity_map: Dense disparity [px], scores and status.
         points: Valid matches triangulated in the left camera's optical frame [m].
-        timings_ms: Time of each step [ms]: rectify, match, triangulate.
+        timings_ms: Time of each step [ms]: rectify, match, triangulate (and, when a search
+            region failed its check, `region` for the matching in it).
+        region: The search region the result comes from; None for the whole image.
+        region_problem: Why the search region asked for was not kept (area_search's
+            region_problem), '' when it was kept or none was asked for.
     """
 
     rectified: StereoCalibration
     disparity_map: DisparityMap
     points: MatchedPoints
     timings_ms: dict[str, float] = field(default_factory=dict)
+    region: SearchRegion | None = None
+    region_problem: str = ''
 
 
 class StereoMatchingPipeline:
@@ -50,7 +58,8 @@ class StereoMatchingPipeline:
         self.rectifier = StereoRectifier()
 
     def process(self, left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
-                full_disparity: bool = False) -> StereoMatchResult:
+                full_disparity: bool = False,
+                region: SearchRegion | None = None) -> StereoMatchResult:
         """Match one raw grey pair.
 
         Args:
@@ -60,6 +69,10 @@ class StereoMatchingPipeline:
             full_disparity: Decide every row of the disparity map. Otherwise only the rows the
                 point stride keeps are decided (the others are SKIPPED_ROW), which saves most
                 of the matching of the rows in between; the points are the same either way.
+            region: Match only in this region (area_search.search_region): only its rows are
+                rectified, only its disparities searched. When the result fails the region's
+                check (area_search.region_problem), the pair is matched again on the whole
+                image and `region_problem` says why.
 
         Returns:
             The rectified calibration, the disparity map and the triangulated points.
@@ -70,15 +83,45 @@ class StereoMatchingPipeline:
             MatcherInputError: Images the matcher cannot use (or an ROI outside them).
         """
         config, stride = self.config, self.point_stride
+        row_step = 1 if full_disparity else stride
         start = time.perf_counter()
+        timings: dict[str, float] = {}
+        problem = ''
+        if region is not None:
+            narrowed = dataclasses.replace(config, roi=region.roi,
+                                           min_disparity=region.min_disparity,
+                                           disparity_range=region.disparity_range)
+            y, height = region.roi[1], region.roi[3]
+            radius = config.window_size // 2
+            left_rect, right_rect, rectified = self.rectifier.rectify_rows(
+                left, right, calibration, max(0, y - radius),
+                min(calibration.left.height, y + height + radius))
+            rectified_at = time.perf_counter()
+            disparity_map = match(left_rect, right_rect, narrowed, row_step=row_step,
+                                  threads=self.threads)
+            matched_at = time.perf_counter()
+            problem = region_problem(disparity_map, region, stride) or ''
+            if not problem:
+                return self._finish(rectified, disparity_map, start, rectified_at, matched_at,
+                                    timings, region)
+            timings['region'] = 1e3 * (time.perf_counter() - start)
+            start = time.perf_counter()
         left_rect, right_rect, rectified = self.rectifier.rectify(left, right, calibration)
         rectified_at = time.perf_counter()
-        disparity_map = match(left_rect, right_rect, config,
-                              row_step=1 if full_disparity else stride, threads=self.threads)
+        disparity_map = match(left_rect, right_rect, config, row_step=row_step,
+                              threads=self.threads)
         matched_at = time.perf_counter()
-        points = triangulate(disparity_map.disparity, disparity_map.score, rectified, stride)
+        return self._finish(rectified, disparity_map, start, rectified_at, matched_at, timings,
+                            None, problem)
+
+    def _finish(self, rectified: StereoCalibration, disparity_map: DisparityMap, start: float,
+                rectified_at: float, matched_at: float, timings: dict[str, float],
+                region: SearchRegion | None, problem: str = '') -> StereoMatchResult:
+        """Triangulate and return the result with the steps' times."""
+        points = triangulate(disparity_map.disparity, disparity_map.score, rectified,
+                             self.point_stride)
         done = time.perf_counter()
-        timings = {'rectify': 1e3 * (rectified_at - start),
-                   'match': 1e3 * (matched_at - rectified_at),
-                   'triangulate': 1e3 * (done - matched_at)}
-        return StereoMatchResult(rectified, disparity_map, points, timings)
+        timings.update(rectify=1e3 * (rectified_at - start),
+                       match=1e3 * (matched_at - rectified_at),
+                       triangulate=1e3 * (done - matched_at))
+        return StereoMatchResult(rectified, disparity_map, points, timings, region, problem)

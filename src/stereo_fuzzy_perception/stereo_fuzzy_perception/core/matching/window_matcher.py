@@ -32,238 +32,68 @@ that keep its right window inside the image (StereoBM instead gives up on the le
 min_disparity + disparity_range columns); the left-right check rejects it when its true partner
 has left the image.
 
-The speed comes from one C kernel (window_matcher_kernel.c, built by colcon as the extension
-_window_matcher_kernel), reached by one call that takes the numpy arrays: it prepares both
-images (float32 rows padded by reflection, window means and variances from running sums), so
-each (pixel, disparity) cell needs only the cross term sum(f w), kept as running column sums
-(updated with one new and one old row) and running window sums along the row: O(1) per cell
-whatever the window size. The disparity loop is innermost and contiguous (the right image is
-stored with its columns reversed for that), and bands of rows run on POSIX threads with the GIL
-released. For 8-bit images the sums are of integers below 2^24 and therefore exact in float32.
-Working memory is kept between calls (_ScratchMemory), and so are the output arrays once the
-caller has dropped the previous result, so that a pair does not fault in fresh pages.
+The speed comes from one C kernel (window_matcher_kernel.h and its C files, built by colcon as
+the extension _window_matcher_kernel), reached by one call that takes the numpy arrays: it
+prepares both images (float32 rows padded by reflection, window means and variances from running
+sums), so each (pixel, disparity) cell needs only the cross term sum(f w), kept as running
+column sums (updated with one new and one old row) and running window sums along the row: O(1)
+per cell whatever the window size. The disparity loop is innermost and contiguous (the right
+image is stored with its columns reversed for that), and bands of rows run on POSIX threads with
+the GIL released. For 8-bit images the sums are of integers below 2^24 and therefore exact in
+float32. Working memory is kept between calls (_ScratchMemory), and so are the output arrays
+once the caller has dropped the previous result, so that a pair does not fault in fresh pages.
 
-ROI ("correlation area", Fig. 2 of the chapter): only pixels inside `roi` are matched, which
-divides the work by the share of the image it covers. Preprocessing (Fig. 8): `edges` correlates
-Sobel gradient magnitudes, `binary` correlates Otsu-thresholded images.
+ROI ("correlation area", Fig. 2 of the chapter): only pixels inside `roi` are matched and only
+its rows are prepared, which divides the work by the share of the image it covers (rows outside
+it, widened by the window's radius, are never read: they may hold anything). Preprocessing (Fig.
+8): `edges` correlates Sobel gradient magnitudes, `binary` correlates Otsu-thresholded images.
 
 ROS-free: numpy, OpenCV and the C kernel only.
 """
 
 from __future__ import annotations
 
-import enum
 import os
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
+
+from stereo_fuzzy_perception.core.matching.matcher_config import (
+    MAX_DISPARITY_RANGE,
+    MAX_WINDOW_SIZE,
+    METHODS,
+    PREPROCESS_MODES,
+    DisparityMap,
+    MatcherConfig,
+    MatcherConfigError,
+    MatcherInputError,
+    MatchStatus,
+)
+from stereo_fuzzy_perception.core.matching.preprocessing import preprocess_image
 
 try:
     from stereo_fuzzy_perception.core.matching import _window_matcher_kernel as _kernel
 except ImportError as error:  # pragma: no cover - a checkout that was never built
     raise ImportError(
         'stereo_fuzzy_perception.core.matching._window_matcher_kernel (the matcher kernel, '
-        'window_matcher_kernel.c) is not built: run scripts/setup.sh, or colcon build in '
-        'ros2_ws') from error
+        'window_matcher_kernel.h and its C files) is not built: run scripts/setup.sh, or colcon '
+        'build in ros2_ws') from error
 
-METHODS = ('zncc', 'plain')
-PREPROCESS_MODES = ('none', 'edges', 'binary')
-MAX_WINDOW_SIZE = 31
-MAX_DISPARITY_RANGE = 512
+# The settings, errors and results are defined in matcher_config.py and the preprocessing in
+# preprocessing.py; they are part of this module's interface, which most callers import.
+__all__ = ['MAX_DISPARITY_RANGE', 'MAX_WINDOW_SIZE', 'METHODS', 'PREPROCESS_MODES',
+           'DisparityMap', 'MatchStatus', 'MatcherConfig', 'MatcherConfigError',
+           'MatcherInputError', 'default_threads', 'effective_roi', 'match',
+           'preprocess_image', 'warm_up']
+
 # Windows whose standard deviation is below this [grey levels] are flat whatever the threshold
 # (the kernel's constant).
 _FLAT_STD: float = _kernel.FLAT_STD
 # Image dtypes the kernel reads as they are; any other integer or float dtype is converted to
 # float32 first (which rounds as the kernel's own conversion would).
 _KERNEL_DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16), np.dtype(np.float32))
-
-
-class MatcherConfigError(ValueError):
-    """A matcher setting out of its allowed range, named in the message."""
-
-
-class MatcherInputError(ValueError):
-    """Images the matcher cannot use (shape, dtype, size or a region outside the image)."""
-
-
-class MatchStatus(enum.IntEnum):
-    """Why a pixel of the disparity map has, or has no, disparity.
-
-    The kernel defines the codes (window_matcher_kernel.c, MATCH_STATUSES, exported as
-    _window_matcher_kernel.STATUS_CODES); test_window_matcher checks that the two agree.
-    """
-
-    VALID = 0
-    OUTSIDE_ROI = 1
-    NO_CANDIDATE = 2
-    LOW_TEXTURE = 3
-    LOW_SCORE = 4
-    NOT_UNIQUE = 5
-    LR_INCONSISTENT = 6
-    SKIPPED_ROW = 7  # not matched: only every row_step-th row was asked for
-
-
-@dataclass(frozen=True)
-class MatcherConfig:
-    """Settings of the window-correlation matcher; validated on construction.
-
-    Attributes:
-        method: `zncc` (Eq. 8) or `plain` (Eq. 7 divided by the window energies).
-        window_size: Side of the square correlation window [px], odd, 3..31.
-        min_disparity: Smallest disparity searched [px].
-        disparity_range: Number of disparities searched [px], 1..512.
-        min_score: Lowest accepted best score (-1..1).
-        texture_threshold: Lowest accepted standard deviation of the left window [grey levels].
-        uniqueness_ratio: Margin by which the best cost (1 - score) must beat every cost more
-            than 1 px away (0 disables; 0.1 = 10 %).
-        lr_check_max_diff: Largest accepted difference between the left disparity and the
-            right pixel's own best disparity [px]; negative disables the check.
-        subpixel: Refine disparities with a parabola fit around the peak.
-        preprocess: `none`, `edges` (Sobel magnitude) or `binary` (Otsu threshold).
-        roi: Region matched, (x, y, width, height) [px] in the left rectified image; a width or
-            height of 0 means the whole image.
-    """
-
-    method: str = 'zncc'
-    window_size: int = 9
-    min_disparity: int = 0
-    disparity_range: int = 64
-    min_score: float = 0.3
-    texture_threshold: float = 0.5
-    uniqueness_ratio: float = 0.0
-    lr_check_max_diff: int = 1
-    subpixel: bool = True
-    preprocess: str = 'none'
-    roi: tuple[int, int, int, int] = field(default=(0, 0, 0, 0))
-
-    def __post_init__(self) -> None:
-        reason = self.problem()
-        if reason:
-            raise MatcherConfigError(reason)
-
-    def problem(self) -> str | None:
-        """Return why this configuration is unusable, or None."""
-        if self.method not in METHODS:
-            return f'method {self.method!r} is not one of {", ".join(METHODS)}'
-        if not _is_int(self.window_size) or not 3 <= self.window_size <= MAX_WINDOW_SIZE:
-            return f'window_size {self.window_size!r} must be an integer in 3..{MAX_WINDOW_SIZE}'
-        if self.window_size % 2 == 0:
-            return f'window_size {self.window_size} must be odd (the window has a centre pixel)'
-        if not _is_int(self.min_disparity) or abs(self.min_disparity) > 4096:
-            return f'min_disparity {self.min_disparity!r} must be an integer in -4096..4096'
-        if (not _is_int(self.disparity_range)
-                or not 1 <= self.disparity_range <= MAX_DISPARITY_RANGE):
-            return (f'disparity_range {self.disparity_range!r} must be an integer in '
-                    f'1..{MAX_DISPARITY_RANGE}')
-        if not -1.0 <= self.min_score <= 1.0:
-            return f'min_score {self.min_score} must be in -1..1 (a correlation coefficient)'
-        if not self.texture_threshold >= 0.0:
-            return f'texture_threshold {self.texture_threshold} must be >= 0 [grey levels]'
-        if not 0.0 <= self.uniqueness_ratio <= 10.0:
-            return f'uniqueness_ratio {self.uniqueness_ratio} must be in 0..10'
-        if not _is_int(self.lr_check_max_diff) or self.lr_check_max_diff > MAX_DISPARITY_RANGE:
-            return (f'lr_check_max_diff {self.lr_check_max_diff!r} must be an integer <= '
-                    f'{MAX_DISPARITY_RANGE} (negative disables the check)')
-        if self.preprocess not in PREPROCESS_MODES:
-            return (f'preprocess {self.preprocess!r} is not one of '
-                    f'{", ".join(PREPROCESS_MODES)}')
-        if len(self.roi) != 4 or not all(_is_int(value) for value in self.roi):
-            return f'roi {self.roi!r} must be four integers (x, y, width, height)'
-        if any(value < 0 for value in self.roi):
-            return f'roi {self.roi!r} must not hold negative values'
-        return None
-
-    @property
-    def max_disparity(self) -> int:
-        """Largest disparity searched [px]."""
-        return self.min_disparity + self.disparity_range - 1
-
-
-def _is_int(value: object) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
-
-
-@dataclass(frozen=True)
-class DisparityMap:
-    """Output of the matcher for one rectified pair.
-
-    Attributes:
-        disparity: (H, W) float32 disparity [px] (left x minus right x), NaN where invalid.
-        score: (H, W) float32 best score at each matched pixel (-1..1), NaN where no candidate
-            was scored (outside the region of interest).
-        status: (H, W) uint8 MatchStatus of each pixel.
-        roi: The region actually matched, (x, y, width, height) [px].
-        config: The settings used.
-    """
-
-    disparity: np.ndarray
-    score: np.ndarray
-    status: np.ndarray
-    roi: tuple[int, int, int, int]
-    config: MatcherConfig
-
-    @property
-    def valid(self) -> np.ndarray:
-        """Return the (H, W) boolean mask of valid disparities."""
-        valid: np.ndarray = self.status == MatchStatus.VALID
-        return valid
-
-    def status_counts(self) -> dict[str, int]:
-        """Return how many pixels of the region of interest have each status, by name."""
-        x, y, width, height = self.roi
-        inside = self.status[y:y + height, x:x + width]
-        counts = np.bincount(inside.ravel(), minlength=len(MatchStatus))
-        return {status.name.lower(): int(counts[status]) for status in MatchStatus}
-
-
-# --- input preparation ------------------------------------------------------------------------
-
-
-def preprocess_image(image: np.ndarray, mode: str) -> np.ndarray:
-    """Apply the chapter's optional preprocessing (Fig. 8) to a grey image.
-
-    Args:
-        image: (H, W) grey image, uint8, uint16 or float.
-        mode: `none` (returned as is), `edges` (Sobel gradient magnitude, uint8, scaled so
-            that a full-range step reads 255) or `binary` (Otsu threshold, 0 or 255).
-
-    Returns:
-        The preprocessed (H, W) image.
-
-    Raises:
-        MatcherConfigError: For an unknown mode.
-    """
-    if mode == 'none':
-        return image
-    if mode not in PREPROCESS_MODES:
-        raise MatcherConfigError(
-            f'preprocess {mode!r} is not one of {", ".join(PREPROCESS_MODES)}')
-    grey8 = _to_uint8(image)
-    if mode == 'binary':
-        binary: np.ndarray
-        _, binary = cv2.threshold(grey8, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-        return binary
-    gx = cv2.Sobel(grey8, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(grey8, cv2.CV_32F, 0, 1, ksize=3)
-    # Integer gradients: the sum of squares is exact in float32 and numpy's sqrt is correctly
-    # rounded. cv2.magnitude is not: its SIMD and scalar paths differ in the last bit, so an
-    # image's edges changed by 1 grey level with the array's address (and so did matches).
-    magnitude = np.sqrt(gx * gx + gy * gy) * np.float32(255.0 / (4.0 * 255.0))
-    edges: np.ndarray = np.clip(np.rint(magnitude), 0, 255).astype(np.uint8)
-    return edges
-
-
-def _to_uint8(image: np.ndarray) -> np.ndarray:
-    if image.dtype == np.uint8:
-        return image
-    if image.dtype == np.uint16:
-        return (image >> 8).astype(np.uint8)
-    clipped: np.ndarray = np.clip(np.rint(image), 0, 255).astype(np.uint8)
-    return clipped
 
 
 def _check_images(left: np.ndarray, right: np.ndarray, config: MatcherConfig) -> None:
@@ -346,11 +176,10 @@ def match(left: np.ndarray, right: np.ndarray, config: MatcherConfig | None = No
         left = preprocess_image(left, config.preprocess)
         right = preprocess_image(right, config.preprocess)
     left, right = (_kernel_image(image) for image in (left, right))
-    work = _scratch_memory(height, width, config.window_size // 2, config.disparity_range,
-                           threads)
+    work = _scratch_memory(height, width, config.window_size // 2, threads)
     disparity, score, status = work.outputs()
     _kernel.correlate(
-        left, right, disparity, score, status, work.workspace,
+        left, right, disparity, score, status, work.workspace_for(config.disparity_range),
         zero_mean=config.method == 'zncc', radius=config.window_size // 2,
         min_disparity=int(config.min_disparity), disparity_range=int(config.disparity_range),
         texture_threshold=float(config.texture_threshold), min_score=float(config.min_score),
@@ -374,15 +203,23 @@ class _ScratchMemory:
     Kept between calls (one per Python thread, for the last shape matched), as StereoBM keeps
     its buffers: faulting in the megabytes a pair needs on every call costs a noticeable share
     of the matching (the package README has the measurement).
+    The workspace grows to the widest disparity range asked for and is kept for narrower
+    ones, so that a search range narrowed pair by pair (the tracked correlation area) does not
+    allocate.
     """
 
-    def __init__(self, height: int, width: int, radius: int, disparity_range: int,
-                 threads: int) -> None:
+    def __init__(self, height: int, width: int, radius: int, threads: int) -> None:
         self.shape = (height, width)
-        self.workspace = np.empty(_kernel.workspace_bytes(
-            height=height, width=width, radius=radius, disparity_range=disparity_range,
-            threads=threads), np.uint8)
+        self._sizes = {'height': height, 'width': width, 'radius': radius, 'threads': threads}
+        self.workspace = np.empty(0, np.uint8)
         self._outputs: list[np.ndarray] = []
+
+    def workspace_for(self, disparity_range: int) -> np.ndarray:
+        """Return a workspace long enough for `disparity_range` [px], grown when it is not."""
+        needed = _kernel.workspace_bytes(disparity_range=disparity_range, **self._sizes)
+        if len(self.workspace) < needed:
+            self.workspace = np.empty(needed, np.uint8)
+        return self.workspace
 
     def outputs(self) -> list[np.ndarray]:
         """Return the (disparity, score, status) arrays for the next result.
@@ -402,12 +239,11 @@ class _ScratchMemory:
 _scratch_memories = threading.local()
 
 
-def _scratch_memory(height: int, width: int, radius: int, disparity_range: int,
-                    threads: int) -> _ScratchMemory:
+def _scratch_memory(height: int, width: int, radius: int, threads: int) -> _ScratchMemory:
     """Return this thread's scratch memory for the shape, made anew when the shape changed."""
-    key = (height, width, radius, disparity_range, threads)
+    key = (height, width, radius, threads)
     if getattr(_scratch_memories, 'key', None) != key:
-        _scratch_memories.work = _ScratchMemory(height, width, radius, disparity_range, threads)
+        _scratch_memories.work = _ScratchMemory(height, width, radius, threads)
         _scratch_memories.key = key
     work: _ScratchMemory = _scratch_memories.work
     return work

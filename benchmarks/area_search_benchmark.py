@@ -1,0 +1,307 @@
+#!/usr/bin/env python3
+"""Matching where the object is: accuracy and time of the area search against the whole image.
+
+For each rendered scene of the chapter's Table 1 set-up (table1_benchmark's scene seeds and
+rig, the demo's point stride), in one run:
+
+1. whole image: the correlation stage (rectify, match, triangulate) on the pair, then the
+   fitted fuzzy rules decide (the chain's default selector);
+2. area search: the decision's correlation area gives the search region of the next pair
+   (area_search.search_region, correlation_node's default margins); the same pair is matched
+   in it (a static scene) and decided again. A region whose check fails is matched again on
+   the whole image, as correlation_node does (counted);
+3. wrong area: the region of the previous scene (another object elsewhere) on this pair: the
+   check must send it to the whole image, or the decision must be as good.
+
+Success = best point within --tolerance-mm of the top face's centre (as table1_benchmark).
+Stage times are medians of the calls, against StereoBM (block 9, the whole-image disparities)
+on the same rectified pair. Markdown to stdout. Timings on a shared machine are noisy.
+
+--bags replays the committed bags instead (bags/*, each with its chain parameters as
+tests/test_whole_chain.py takes them), scene after scene as correlation_node would with
+roi.max_age_s long enough to track every scene's area into the next (a different object
+elsewhere): the points are compared with the whole image's, and each scene is also matched in
+its own decision's region.
+
+    source scripts/env.sh
+    nice python benchmarks/area_search_benchmark.py --scenes-per-type 10
+    nice python benchmarks/area_search_benchmark.py --bags
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / 'src' / 'stereo_fuzzy_perception'))
+sys.path.insert(0, str(ROOT / 'benchmarks'))
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.point_selectors import (  # noqa: E402
+    BestPointChooser,
+    BestPointDecision,
+)
+from stereo_fuzzy_perception.core.image_encoding import to_gray  # noqa: E402
+from stereo_fuzzy_perception.core.matching.area_search import (  # noqa: E402
+    AreaProjectionError,
+    SearchRegion,
+    TrackedArea,
+    search_region,
+)
+from stereo_fuzzy_perception.core.matching.area_tracker import TrackingConfig  # noqa: E402
+from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchResult  # noqa: E402
+from stereo_fuzzy_perception.simulation.rendered_scenes import RenderedSceneSource  # noqa: E402
+from stereo_fuzzy_perception.simulation.synthetic_scenes import OBJECT_TYPES  # noqa: E402
+from table1_benchmark import demo_point_stride, scene_seeds  # noqa: E402
+
+
+def tracked_area(decision: BestPointDecision) -> TrackedArea | None:
+    """Return the decision's area as correlation_node takes it from FuzzyDecision."""
+    if not decision.has_best_point:
+        return None
+    surface = decision.surface
+    area = TrackedArea(0.0, np.asarray(decision.border_points, dtype=float),
+                       float(decision.top_height), (0.0, 0.0, float(surface.offset_m)),
+                       tuple(float(value) for value in surface.normal),
+                       float(surface.disparity_sigma_px))
+    return None if area.problem() else area
+
+
+def error_mm(decision: BestPointDecision, target: np.ndarray) -> float:
+    """Return the 3D error of the best point [mm], inf without one."""
+    point = decision.best_point_world
+    return float('inf') if point is None else 1e3 * float(np.linalg.norm(point - target))
+
+
+def total_ms(result: StereoMatchResult) -> float:
+    """Return the stage's time for the pair [ms] (including a failed region's)."""
+    return sum(result.timings_ms.values())
+
+
+def main() -> None:
+    """Run the three modes on every scene and print the tables."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--scenes-per-type', type=int, default=10)
+    parser.add_argument('--seed', type=int, default=3)
+    parser.add_argument('--tolerance-mm', type=float, default=3.0)
+    parser.add_argument('--bags', action='store_true',
+                        help='replay the committed bags in both modes instead')
+    args = parser.parse_args()
+    if args.bags:
+        replay_bags()
+        return
+    load = os.getloadavg()[0]
+    stride = demo_point_stride()
+    tracking = TrackingConfig()
+    seeds = scene_seeds(args.seed, args.scenes_per_type)
+    rows: list[dict[str, object]] = []
+    with RenderedSceneSource(point_stride=stride) as source:
+        chooser = BestPointChooser.create('fuzzy_fitted', AreaConfig(), source.rig)
+        pose = source.rig.world_from_left_camera()
+        pipeline = source.pipeline()
+        full_range = (pipeline.config.min_disparity, pipeline.config.disparity_range)
+        bm = cv2.StereoBM_create(numDisparities=16 * -(-full_range[1] // 16), blockSize=9)
+        bm.setMinDisparity(full_range[0])
+        previous: SearchRegion | None = None
+        for kind in OBJECT_TYPES:
+            for seed in seeds[kind]:
+                frame = source.render(seed, kind)
+                target = np.asarray(frame.ground_truth.target_world, dtype=float)
+                left = to_gray(frame.left, frame.encoding)
+                right = to_gray(frame.right, frame.encoding)
+                full = pipeline.process(left, right, frame.calibration)
+                decided = chooser.decide(full.points, full.rectified.left, full.rectified.right)
+                left_rect, right_rect, _ = pipeline.rectifier.rectify(left, right,
+                                                                      frame.calibration)
+                start = time.perf_counter()
+                bm.compute(left_rect, right_rect)
+                row: dict[str, object] = {
+                    'kind': kind, 'full_mm': error_mm(decided, target),
+                    'full_ms': total_ms(full), 'bm_ms': 1e3 * (time.perf_counter() - start)}
+                area = tracked_area(decided)
+                region = None
+                if area is not None:
+                    try:
+                        region = search_region(area, frame.calibration, pose, full_range,
+                                               tracking.margin_object_sizes, tracking.margin_m)
+                    except AreaProjectionError as error:
+                        row['no_region'] = str(error)
+                if region is not None:
+                    tracked = pipeline.process(left, right, frame.calibration, region=region)
+                    again = chooser.decide(tracked.points, tracked.rectified.left,
+                                           tracked.rectified.right)
+                    row.update(region_mm=error_mm(again, target), region_ms=total_ms(tracked),
+                               region_problem=tracked.region_problem,
+                               region_share=region.roi[2] * region.roi[3] / left.size,
+                               region_disparities=region.disparity_range)
+                if previous is not None:
+                    wrong = pipeline.process(left, right, frame.calibration, region=previous)
+                    other = chooser.decide(wrong.points, wrong.rectified.left,
+                                           wrong.rectified.right)
+                    row.update(wrong_mm=error_mm(other, target),
+                               wrong_problem=wrong.region_problem)
+                previous = region or previous
+                rows.append(row)
+                print(f'{kind} {seed}: {row}', file=sys.stderr)
+    report(rows, args.tolerance_mm, stride, load)
+
+
+def report(rows: list[dict[str, object]], tolerance: float, stride: int, load: float) -> None:
+    """Print the accuracy and time tables."""
+    def share(values: list[float]) -> str:
+        return (f'{100 * sum(value <= tolerance for value in values) / len(values):.1f} %'
+                if values else '-')
+
+    def mean_finite(values: list[float]) -> str:
+        finite = [value for value in values if np.isfinite(value)]
+        return f'{statistics.fmean(finite):.2f}' if finite else '-'
+
+    print(f'\n### Area search (point stride {stride}, fitted rules; {os.cpu_count()} CPUs, '
+          f'1-min load {load:.1f} before, {os.getloadavg()[0]:.1f} after)\n')
+    print(f'| object | scenes | whole image within {tolerance:g} mm / mean [mm] | area search '
+          'within / mean [mm] | region kept / checked | same point (within 0.5 mm) | '
+          'wrong area: kept / checked, within |')
+    print('|---|---:|---:|---:|---:|---:|---:|')
+    for kind in (*OBJECT_TYPES, 'all'):
+        chosen = [row for row in rows if kind in ('all', row['kind'])]
+        full = [float(row['full_mm']) for row in chosen]  # type: ignore[arg-type]
+        tracked = [row for row in chosen if 'region_mm' in row]
+        # a rejected region falls back to the whole image: its decision is the whole image's
+        region = [float(row['region_mm']) for row in tracked]  # type: ignore[arg-type]
+        kept = [row for row in tracked if not row['region_problem']]
+        same = sum(abs(float(row['region_mm']) - float(row['full_mm'])) <= 0.5  # type: ignore[arg-type]
+                   or row['region_mm'] == row['full_mm'] for row in tracked)
+        wrong = [row for row in chosen if 'wrong_mm' in row]
+        wrong_kept = [row for row in wrong if not row['wrong_problem']]
+        print(f'| {kind} | {len(chosen)} | {share(full)} / {mean_finite(full)} '
+              f'| {share(region)} / {mean_finite(region)} | {len(kept)} / {len(tracked)} '
+              f'| {same} / {len(tracked)} | {len(wrong_kept)} / {len(wrong)}, '
+              f'{share([float(row["wrong_mm"]) for row in wrong])} |')  # type: ignore[arg-type]
+    kept_rows = [row for row in rows if 'region_mm' in row and not row['region_problem']]
+    print('\n| stage time per pair, median [ms] | whole image | area search (kept regions) | '
+          'StereoBM, whole image | region share of the image | disparities searched |')
+    print('|---|---:|---:|---:|---:|---:|')
+    if kept_rows:
+        print(f'| 640x480 | {statistics.median(float(r["full_ms"]) for r in rows):.1f} '  # type: ignore[arg-type]
+              f'| {statistics.median(float(r["region_ms"]) for r in kept_rows):.1f} '  # type: ignore[arg-type]
+              f'| {statistics.median(float(r["bm_ms"]) for r in rows):.1f} '  # type: ignore[arg-type]
+              f'| {statistics.median(float(r["region_share"]) for r in kept_rows):.2f} '  # type: ignore[arg-type]
+              f'| {statistics.median(int(r["region_disparities"]) for r in kept_rows):.0f} |')  # type: ignore[call-overload]
+
+
+def bag_scenes(bag: Path) -> list[tuple[float, np.ndarray, np.ndarray, Any]]:
+    """Return the bag's pairs in stamp order: (stamp [s], left grey, right grey, calibration)."""
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import CameraInfo, Image
+    from stereo_fuzzy_perception.bag.bag_io import read_messages
+    from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+    from stereo_fuzzy_perception.nodes.conversions import (
+        camera_info_to_calibration,
+        image_to_array,
+        stamp_to_ns,
+    )
+
+    types = {'/left/image_raw': Image, '/right/image_raw': Image,
+             '/left/camera_info': CameraInfo, '/right/camera_info': CameraInfo}
+    scenes: dict[int, dict[str, Any]] = {}
+    for message in read_messages(bag, types):
+        decoded = deserialize_message(message.data, types[message.topic])
+        scenes.setdefault(stamp_to_ns(decoded.header.stamp), {})[message.topic] = decoded
+    pairs = []
+    for stamp in sorted(scenes):
+        scene = scenes[stamp]
+        left, right = scene['/left/image_raw'], scene['/right/image_raw']
+        pairs.append((stamp * 1e-9, to_gray(image_to_array(left), left.encoding),
+                      to_gray(image_to_array(right), right.encoding), StereoCalibration(
+                          camera_info_to_calibration(scene['/left/camera_info']),
+                          camera_info_to_calibration(scene['/right/camera_info']))))
+    return pairs
+
+
+def replay_bags() -> None:
+    """Match every committed bag's scenes tracked and whole; print a table."""
+    import dataclasses
+
+    import yaml
+    from stereo_fuzzy_perception.core.matching.area_tracker import AreaTracker
+    from stereo_fuzzy_perception.core.matching.disparity_range import workspace_disparity_range
+    from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
+    from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
+    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+
+    print("\n| bag | scenes | previous scene's region: kept / tried, same point as the whole "
+          "image | own region: kept / tried, distance to the whole image's point [mm] | "
+          "where (previous scene's region) |")
+    print('|---|---:|---:|---:|---|')
+    for bag in sorted(path for path in (ROOT / 'bags').iterdir()
+                      if (path / 'metadata.yaml').exists()):
+        own_params = bag / 'chain_params.yaml'
+        params = yaml.safe_load((own_params if own_params.exists()
+                                 else ROOT / 'chain' / 'demo_params.yaml').read_text())
+        correlation = params['correlation_node']['ros__parameters']
+        fuzzy = params.get('fuzzy_best_point_node', {}).get('ros__parameters', {})
+        rig = StereoRig(**fuzzy.get('rig', {}))
+        pose = rig.world_from_left_camera()
+        pipeline = StereoMatchingPipeline(point_stride=int(correlation.get('point_stride', 1)))
+        chooser = BestPointChooser.create(fuzzy.get('selector', 'fuzzy_fitted'), AreaConfig(),
+                                          rig)
+        area_config = AreaConfig()
+        tracker = AreaTracker(dataclasses.replace(TrackingConfig(), max_age_s=60.0,
+                                                  full_frame_every=10**6))
+        where: dict[str, int] = {}
+        same = tried = own_kept = own_tried = 0
+        distances: list[float] = []
+        pairs = bag_scenes(bag)
+        for stamp, left, right, calibration in pairs:
+            derived = workspace_disparity_range(calibration, pose, area_config.workspace_min,
+                                                area_config.workspace_max)
+            full_range = (derived.min_disparity, derived.disparity_range)
+            pipeline.config = MatcherConfig(min_disparity=full_range[0],
+                                            disparity_range=full_range[1])
+            whole = pipeline.process(left, right, calibration)
+            decided = chooser.decide(whole.points, whole.rectified.left, whole.rectified.right)
+            plan = tracker.plan(stamp, calibration, pose, full_range)
+            if plan.region is not None:
+                tracked = pipeline.process(left, right, calibration, region=plan.region)
+                again = chooser.decide(tracked.points, tracked.rectified.left,
+                                       tracked.rectified.right)
+                tried += 1
+                reason = tracked.region_problem or 'kept'
+                where[reason] = where.get(reason, 0) + 1
+                first, second = again.best_point_world, decided.best_point_world
+                same += int((first is None and second is None) or (
+                    first is not None and second is not None
+                    and bool(np.allclose(first, second, atol=1e-4))))
+            area = tracked_area(decided)
+            tracker.observe(None if area is None else dataclasses.replace(area, stamp_s=stamp))
+            if area is None:
+                continue
+            try:
+                region = search_region(area, calibration, pose, full_range,
+                                       TrackingConfig().margin_object_sizes,
+                                       TrackingConfig().margin_m)
+            except AreaProjectionError:
+                continue
+            own = pipeline.process(left, right, calibration, region=region)
+            own_tried += 1
+            own_kept += int(not own.region_problem)
+            point = chooser.decide(own.points, own.rectified.left,
+                                   own.rectified.right).best_point_world
+            if point is not None and decided.best_point_world is not None:
+                distances.append(1e3 * float(np.linalg.norm(point - decided.best_point_world)))
+        spread = (f'{min(distances):.2f}-{max(distances):.2f}' if distances else '-')
+        print(f'| {bag.name} | {len(pairs)} | {where.get("kept", 0)} / {tried}, {same} / {tried} '
+              f'| {own_kept} / {own_tried}, {spread} '
+              f'| {", ".join(f"{key}: {count}" for key, count in sorted(where.items()))} |')
+
+
+if __name__ == '__main__':
+    main()

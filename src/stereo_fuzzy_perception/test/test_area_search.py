@@ -1,0 +1,182 @@
+"""The tracked correlation area: its search region, the region's check and when it is used."""
+
+import numpy as np
+import pytest
+from grid_scenes import Box, grid_matches
+from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+from stereo_fuzzy_perception.core.matching.area_search import (
+    AT_DISPARITY_LIMIT,
+    OBJECT_AT_EDGE,
+    OBJECT_LOST,
+    OBJECT_MOVED,
+    AreaProjectionError,
+    SearchRegion,
+    TrackedArea,
+    region_problem,
+    search_region,
+    surface_disparity_plane,
+)
+from stereo_fuzzy_perception.core.matching.area_tracker import (
+    NO_AREA,
+    NO_REGION,
+    PERIODIC,
+    STALE_AREA,
+    TRACKING_OFF,
+    AreaTracker,
+    TrackingConfig,
+)
+from stereo_fuzzy_perception.core.matching.window_matcher import (
+    DisparityMap,
+    MatcherConfig,
+    MatchStatus,
+)
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+
+RIGS = [StereoRig(),
+        StereoRig(baseline_m=0.10, alpha_deg=30.0, z0_m=0.7, y0_m=-0.3, vergence_deg=8.0),
+        StereoRig(baseline_m=0.08, alpha_deg=0.0, x0_m=0.2, y0_m=0.15, z0_m=0.75,
+                  vergence_deg=0.0)]
+BOX = Box((0.2, 0.15), 0.05, 0.04)
+FULL_RANGE = (1, 400)
+
+
+def _world(rig: StereoRig, xyz: np.ndarray) -> np.ndarray:
+    pose = rig.world_from_left_camera()
+    world: np.ndarray = xyz @ pose[:3, :3].T + pose[:3, 3]
+    return world
+
+
+def box_area(stamp_s: float = 0.0) -> TrackedArea:
+    x, y = BOX.centre_xy
+    half = BOX.size / 2
+    border = np.array([[x - half, y, BOX.height], [x + half, y, BOX.height],
+                       [x, y - half, BOX.height], [x, y + half, BOX.height]])
+    return TrackedArea(stamp_s, border, BOX.height, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 0.1)
+
+
+@pytest.mark.parametrize('rig', RIGS)
+def test_the_surface_disparity_is_affine_in_the_pixel(rig):
+    points, left, right = grid_matches(rig, None, 0.0, 8, surface_z=0.01)
+    calibration = StereoCalibration(left, right)
+    transform = np.linalg.inv(rig.world_from_left_camera())
+    transform[:3] = np.asarray(left.R) @ transform[:3]
+    a, b, c = surface_disparity_plane(calibration, transform, np.array([0.0, 0.0, 0.01]),
+                                      np.array([0.0, 0.0, 1.0]))
+    predicted = a * points.u_left + b * points.v_left + c
+    assert np.allclose(predicted, points.u_left - points.u_right, atol=1e-3)
+
+
+@pytest.mark.parametrize('rig', RIGS)
+def test_the_region_holds_the_box_with_its_disparities_and_standing_out(rig):
+    points, left, right = grid_matches(rig, BOX, 0.0, 2)
+    world = _world(rig, points.xyz)
+    on_box = BOX.covers(world[:, 0], world[:, 1]) & (world[:, 2] > BOX.height / 2)
+    assert np.count_nonzero(on_box) > 20
+    region = search_region(box_area(), StereoCalibration(left, right),
+                           rig.world_from_left_camera(), FULL_RANGE, 1.0, 0.02)
+    x, y, width, height = region.roi
+    u, v = points.u_left[on_box], points.v_left[on_box]
+    assert np.all((u >= x) & (u < x + width) & (v >= y) & (v < y + height))
+    assert width < left.width or height < left.height
+    disparity = points.u_left - points.u_right
+    inside = (points.u_left >= x) & (points.u_left < x + width) & (points.v_left >= y) & (
+        points.v_left < y + height)
+    assert disparity[inside].min() >= region.min_disparity
+    assert disparity[inside].max() <= region.min_disparity + region.disparity_range - 1
+    a, b, c = region.surface_plane
+    excess = disparity - (a * points.u_left + b * points.v_left + c)
+    assert np.all(excess[on_box] > region.standing_px)
+    surface = world[:, 2] < BOX.height / 2
+    assert np.all(np.abs(excess[surface & inside]) < region.standing_px)
+
+
+def test_an_area_behind_the_camera_or_outside_the_range_gives_no_region():
+    rig = RIGS[0]
+    _, left, right = grid_matches(rig, None, 0.0, 8)
+    calibration = StereoCalibration(left, right)
+    behind = box_area()
+    behind = TrackedArea(0.0, behind.border_points + np.array([0.0, 0.0, 5.0]), 0.04,
+                         (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 0.1)
+    with pytest.raises(AreaProjectionError):
+        search_region(behind, calibration, rig.world_from_left_camera(), FULL_RANGE, 1.0, 0.02)
+    with pytest.raises(AreaProjectionError, match='whole-image range'):
+        search_region(box_area(), calibration, rig.world_from_left_camera(), (400, 10), 1.0,
+                      0.02)
+
+
+def _disparity_map(disparity: np.ndarray) -> DisparityMap:
+    status = np.where(np.isfinite(disparity), MatchStatus.VALID,
+                      MatchStatus.LOW_TEXTURE).astype(np.uint8)
+    return DisparityMap(disparity.astype(np.float32), np.ones_like(disparity, np.float32),
+                        status, (0, 0, disparity.shape[1], disparity.shape[0]), MatcherConfig())
+
+
+REGION = SearchRegion((20, 20, 60, 60), 0, 32, (0.0, 0.0, 8.0), 1.0, 256.0, (50.0, 50.0))
+
+
+@pytest.mark.parametrize(('block', 'top', 'expected'), [
+    ((40, 40), 10.0, None),  # inside, away from the ring, where the top face was
+    ((20, 40), 10.0, OBJECT_AT_EDGE),  # reaches the region's left edge
+    ((40, 65), 10.0, OBJECT_AT_EDGE),  # reaches its bottom edge
+    ((40, 40), 31.0, AT_DISPARITY_LIMIT),  # taller than the range searched
+    (None, 10.0, OBJECT_LOST),  # only the surface
+    ((52, 28), 10.0, OBJECT_MOVED),  # inside, but off the top face's centre
+], ids=['inside', 'left-edge', 'bottom-edge', 'at-limit', 'gone', 'moved'])
+@pytest.mark.parametrize('stride', [1, 3])
+def test_the_region_check_finds_an_object_at_its_edge_gone_moved_or_too_tall(
+        block, top, expected, stride):
+    disparity = np.full((100, 100), 8.0)
+    disparity[::7, ::5] += 0.5  # noise below the standing threshold
+    if block is not None:
+        disparity[block[1]:block[1] + 20, block[0]:block[0] + 20] = top
+    assert region_problem(_disparity_map(disparity), REGION, stride) == expected
+
+
+def test_a_few_mismatches_in_the_ring_are_tolerated():
+    disparity = np.full((100, 100), 8.0)
+    disparity[40:60, 40:60] = 10.0
+    disparity[21, 30:33] = 12.0  # three stray matches in the ring
+    assert region_problem(_disparity_map(disparity), REGION, 1) is None
+
+
+def test_the_tracker_searches_everywhere_until_an_area_then_on_schedule():
+    rig = RIGS[0]
+    _, left, right = grid_matches(rig, None, 0.0, 8)
+    calibration = StereoCalibration(left, right)
+    pose = rig.world_from_left_camera()
+    tracker = AreaTracker(TrackingConfig(full_frame_every=3, max_age_s=0.5))
+
+    def plan(stamp: float) -> str:
+        found = tracker.plan(stamp, calibration, pose, FULL_RANGE)
+        return 'area' if found.region is not None else found.reason
+
+    assert plan(0.0) == NO_AREA
+    tracker.observe(box_area(0.0))
+    assert [plan(0.1), plan(0.2), plan(0.3), plan(0.4)] == ['area', 'area', PERIODIC, 'area']
+    assert plan(0.6) == STALE_AREA
+    tracker.observe(box_area(0.6))
+    tracker.observe(box_area(0.5))  # an older decision does not replace a newer one
+    assert plan(1.0) == 'area'
+    assert tracker.plan(1.0, calibration, None, FULL_RANGE).reason == TRACKING_OFF
+    tracker.region_failed(OBJECT_LOST)
+    assert plan(1.0) == NO_AREA
+    tracker.observe(box_area(1.0))
+    tracker.observe(None)  # the object was lost
+    assert plan(1.0) == NO_AREA
+    tracker.observe(box_area(1.0))
+    assert tracker.plan(1.0, calibration, pose, (400, 10)).reason == NO_REGION
+    tracker.config = TrackingConfig(enabled=False)
+    assert plan(1.0) == TRACKING_OFF
+
+
+def test_an_area_with_unusable_values_is_not_tracked():
+    area = box_area()
+    bad = TrackedArea(0.0, area.border_points, float('nan'), (0.0, 0.0, 0.0),
+                      (0.0, 0.0, 1.0), 0.1)
+    assert bad.problem()
+    tracker = AreaTracker()
+    tracker.observe(bad)
+    rig = RIGS[0]
+    _, left, right = grid_matches(rig, None, 0.0, 8)
+    assert tracker.plan(0.0, StereoCalibration(left, right), rig.world_from_left_camera(),
+                        FULL_RANGE).reason == NO_AREA
