@@ -142,3 +142,12 @@ def test_the_default_chain_description_gives_the_product_topic_names(graph, ros_
         published, subscribed = graph.topics(node)
         assert not any('/stereo/stereo' in topic for topic in published | subscribed), (
             node.get_name(), published, subscribed)
+    # The set is wired: every topic a node reads (but the cameras' and the global ones) is one
+    # another node of the set writes, e.g. correlation_node's /best_point/decision for roi.track.
+    graph.wait_for(nodes['correlation_node'], set(), {'/best_point/decision'})
+    topics = {name: graph.topics(node) for name, node in nodes.items()}
+    written = set().union(*(published for published, _ in topics.values()))
+    for name, (_, subscribed) in topics.items():
+        unwired = {topic for topic in subscribed - written - GLOBAL_TOPICS
+                   if not topic.startswith(('/stereo/left/', '/stereo/right/'))}
+        assert not unwired, (name, unwired)
