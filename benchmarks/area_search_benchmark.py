@@ -17,6 +17,11 @@ Success = best point within --tolerance-mm of the top face's centre (as table1_b
 Stage times are medians of the calls, against StereoBM (block 9, the whole-image disparities)
 on the same rectified pair. Markdown to stdout. Timings on a shared machine are noisy.
 
+--randomized matches scenes of the randomized distribution's evaluation split instead (rigs that
+training never saw, 0.30-0.80 m up, tilted, toed in; simulation/scene_distribution.py), each in
+both modes with correlation_node's default matcher settings for its rig, at --point-stride: the
+tracked area must not cost accuracy on rigs other than the demo's.
+
 --bags replays the committed bags instead (bags/*, each with its chain parameters as
 tests/test_whole_chain.py takes them), scene after scene as correlation_node would with
 roi.max_age_s long enough to track every scene's area into the next (a different object
@@ -26,6 +31,7 @@ its own decision's region.
     source scripts/env.sh
     nice python benchmarks/area_search_benchmark.py --scenes-per-type 10
     nice python benchmarks/area_search_benchmark.py --bags
+    nice python benchmarks/area_search_benchmark.py --randomized --scenes-per-type 25
 """
 
 from __future__ import annotations
@@ -94,9 +100,15 @@ def main() -> None:
     parser.add_argument('--tolerance-mm', type=float, default=3.0)
     parser.add_argument('--bags', action='store_true',
                         help='replay the committed bags in both modes instead')
+    parser.add_argument('--randomized', action='store_true',
+                        help="the randomized distribution's evaluation split instead")
+    parser.add_argument('--point-stride', type=int, default=1, help='with --randomized')
     args = parser.parse_args()
     if args.bags:
         replay_bags()
+        return
+    if args.randomized:
+        randomized(args.scenes_per_type, args.point_stride, args.tolerance_mm)
         return
     load = os.getloadavg()[0]
     stride = demo_point_stride()
@@ -195,6 +207,68 @@ def report(rows: list[dict[str, object]], tolerance: float, stride: int, load: f
               f'| {statistics.median(float(r["bm_ms"]) for r in rows):.1f} '  # type: ignore[arg-type]
               f'| {statistics.median(float(r["region_share"]) for r in kept_rows):.2f} '  # type: ignore[arg-type]
               f'| {statistics.median(int(r["region_disparities"]) for r in kept_rows):.0f} |')  # type: ignore[call-overload]
+
+
+def randomized(per_type: int, stride: int, tolerance: float) -> None:
+    """Match evaluation-split scenes in both modes (their own decision's region); print a row."""
+    from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
+    from stereo_fuzzy_perception.simulation.distribution_source import matcher_for
+    from stereo_fuzzy_perception.simulation.scene_distribution import split_plan
+    from stereo_fuzzy_perception.simulation.scene_renderer import SceneRenderer
+
+    load = os.getloadavg()[0]
+    tracking = TrackingConfig()
+    rows: list[dict[str, object]] = []
+    for planned in split_plan('evaluation', per_type):
+        scene = planned.draw()
+        rig = scene.rig
+        with SceneRenderer(camera=rig.camera, rig=rig.rig, encoding='mono8') as renderer:
+            frame = renderer.render(scene.scene, lighting=scene.lighting, sensor=scene.sensor())
+        config = matcher_for(frame.calibration, scene)
+        pipeline = StereoMatchingPipeline(config, point_stride=stride)
+        chooser = BestPointChooser.create('fuzzy_fitted', AreaConfig(), rig.rig)
+        pose = rig.rig.world_from_left_camera()
+        target = np.asarray(frame.ground_truth.target_world, dtype=float)
+        left, right = to_gray(frame.left, frame.encoding), to_gray(frame.right, frame.encoding)
+        full = pipeline.process(left, right, frame.calibration)
+        decided = chooser.decide(full.points, full.rectified.left, full.rectified.right)
+        row: dict[str, object] = {'kind': scene.object_type,
+                                  'full_mm': error_mm(decided, target)}
+        area = tracked_area(decided)
+        if area is not None:
+            try:
+                region = search_region(area, frame.calibration, pose,
+                                       (config.min_disparity, config.disparity_range),
+                                       tracking.margin_object_sizes, tracking.margin_m)
+            except AreaProjectionError:
+                region = None
+            if region is not None:
+                tracked = pipeline.process(left, right, frame.calibration, region=region)
+                again = (decided if tracked.region_problem else chooser.decide(
+                    tracked.points, tracked.rectified.left, tracked.rectified.right))
+                row.update(region_mm=error_mm(again, target),
+                           region_problem=tracked.region_problem)
+        rows.append(row)
+        print(f'{planned.seed}: {row}', file=sys.stderr)
+    full_errors = [float(row['full_mm']) for row in rows]  # type: ignore[arg-type]
+    # No region (no decision) or a refused one: the node matches the whole image again.
+    tracked_errors = [float(row.get('region_mm', row['full_mm'])) for row in rows]  # type: ignore[arg-type]
+    kept = sum(1 for row in rows if 'region_mm' in row and not row['region_problem'])
+    tried = sum(1 for row in rows if 'region_mm' in row)
+    same = sum(1 for row in rows if 'region_mm' in row and (
+        row['region_mm'] == row['full_mm']
+        or abs(float(row['region_mm']) - float(row['full_mm'])) <= 0.5))  # type: ignore[arg-type]
+
+    def within(values: list[float]) -> str:
+        return f'{100 * sum(value <= tolerance for value in values) / len(values):.1f} %'
+
+    print(f'\n### Area search on the randomized evaluation split (point stride {stride}, fitted '
+          f'rules; 1-min load {load:.1f} before, {os.getloadavg()[0]:.1f} after)\n')
+    print(f'| scenes | whole image within {tolerance:g} mm | tracked area within {tolerance:g} mm '
+          '| region kept / tried | same point (within 0.5 mm) |')
+    print('|---:|---:|---:|---:|---:|')
+    print(f'| {len(rows)} | {within(full_errors)} | {within(tracked_errors)} | {kept} / {tried} '
+          f'| {same} / {tried} |')
 
 
 def bag_scenes(bag: Path) -> list[tuple[float, np.ndarray, np.ndarray, Any]]:
