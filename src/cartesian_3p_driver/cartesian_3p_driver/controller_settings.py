@@ -95,3 +95,17 @@ class FaultInjection:
     alarm_axis: str = ''
     alarm_at_mm: float = 0.0
     alarm_code: int = 1
+
+    def drops_reply_to(self, number: int) -> bool:
+        """Return True when the reply to line `number` is never sent."""
+        return number == self.drop_reply_to_line or _every(number, self.drop_reply_every_lines)
+
+    def garbles_reply_to(self, number: int) -> bool:
+        """Return True when line `number` is answered with a corrupt reply."""
+        return number == self.garble_reply_to_line \
+            or _every(number, self.garble_reply_every_lines)
+
+
+def _every(number: int, period: int) -> bool:
+    """Return True when line `number` is a multiple of `period` (0 = never)."""
+    return period > 0 and number % period == 0

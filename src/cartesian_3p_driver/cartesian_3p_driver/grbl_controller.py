@@ -44,11 +44,6 @@ ALARM_LOCK_MESSAGE = "[MSG:'$H'|'$X' to unlock]"
 GARBLED_REPLY = 'o\ufffdk'
 
 
-def _every(number: int, period: int) -> bool:
-    """Return True when line `number` is a multiple of `period` (0 = never)."""
-    return period > 0 and number % period == 0
-
-
 _WORD_RE = re.compile(r'([A-Z])([-+]?(?:\d+\.?\d*|\.\d+))?')
 _SETTING_RE = re.compile(r'^\$(\d+)=(.*)$')
 
@@ -178,11 +173,9 @@ class GrblController(ControllerMotion):
     # -- lines --------------------------------------------------------------------------------
 
     def _reply(self, number: int, text: str) -> None:
-        faults = self.faults
-        if number == faults.drop_reply_to_line or _every(number, faults.drop_reply_every_lines):
+        if self.faults.drops_reply_to(number):
             return
-        if number == faults.garble_reply_to_line \
-                or _every(number, faults.garble_reply_every_lines):
+        if self.faults.garbles_reply_to(number):
             text = GARBLED_REPLY
         self.output.append(text)
 
