@@ -2,7 +2,10 @@
 
 ROS-free. Bytes go in through `receive`, time advances through `advance`, and the lines the
 controller would print come out of `output`. The simulator's I/O layer (grbl_simulator.py)
-wires it to a pseudo-terminal or a TCP socket.
+wires it to a pseudo-terminal or a TCP socket. This module holds the protocol side (receive
+buffer, line parser, `$` commands, G-code words, status reports); the machine state and motion
+are in controller_motion.py and the settings and fault injection in controller_settings.py
+(both importable from here).
 
 Simplifications, documented in the package README: constant-feed moves (no acceleration; a
 feed hold keeps moving for `HOLD_DECELERATION_S` before `Hold:0`); homing goes to machine
@@ -16,11 +19,17 @@ import math
 import re
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
+from .controller_motion import (
+    HOLD_DECELERATION_S,
+    PLANNER_BLOCKS,
+    ControllerMotion,
+    PlannedDwell,
+    PlannedMove,
+)
+from .controller_settings import ControllerSettings, FaultInjection
 from .gcode import AXES, Vector3
 from .grbl_protocol import (
-    CRITICAL_ALARMS,
     CYCLE_START,
     FEED_HOLD,
     MAX_LINE_LENGTH,
@@ -31,122 +40,15 @@ from .grbl_protocol import (
 
 BANNER = "Grbl 1.1h ['$' for help]"
 ALARM_LOCK_MESSAGE = "[MSG:'$H'|'$X' to unlock]"
-PLANNER_BLOCKS = 16
-#: Simulated time a feed hold keeps moving before it reports Hold:0 [s].
-HOLD_DECELERATION_S = 0.05
 #: A reply the fault injection garbles becomes this (not a valid Grbl line).
 GARBLED_REPLY = 'o\ufffdk'
-
-
-@dataclass
-class ControllerSettings:
-    """The `$` settings the simulator honours (Grbl numbers in brackets).
-
-    Attributes:
-        max_travel_mm: Travel per axis [$130-$132] [mm].
-        max_rate_mm_min: Maximum rate per axis [$110-$112] [mm/min].
-        soft_limits: Refuse targets outside the travel with ALARM:2 [$20].
-        hard_limits: Limit switches raise ALARM:1 [$21] (see the alarm fault injection).
-        homing_enabled: `$H` is available and the controller boots in Alarm [$22].
-        homing_rate_mm_min: Homing seek rate [$25] [mm/min].
-        report_machine_position: MPos (True) or WPos with WCO (False) [$10 bit 0].
-    """
-
-    max_travel_mm: list[float] = field(default_factory=lambda: [400.0, 300.0, 200.0])
-    max_rate_mm_min: list[float] = field(default_factory=lambda: [6000.0, 6000.0, 3000.0])
-    soft_limits: bool = False
-    hard_limits: bool = False
-    homing_enabled: bool = True
-    homing_rate_mm_min: float = 3000.0
-    report_machine_position: bool = True
-
-    def as_dollar_lines(self) -> list[str]:
-        """Return the settings as `$$` prints them."""
-        lines = [f'$10={1 if self.report_machine_position else 0}',
-                 f'$20={int(self.soft_limits)}', f'$21={int(self.hard_limits)}',
-                 f'$22={int(self.homing_enabled)}', f'$25={self.homing_rate_mm_min:.3f}']
-        lines += [f'${110 + i}={value:.3f}' for i, value in enumerate(self.max_rate_mm_min)]
-        lines += [f'${130 + i}={value:.3f}' for i, value in enumerate(self.max_travel_mm)]
-        return lines
-
-    def set(self, number: int, value: float) -> int:
-        """Apply `$number=value`; return 0 or the Grbl error code."""
-        if number == 10:
-            self.report_machine_position = bool(int(value) & 1)
-        elif number == 20:
-            if value and not self.homing_enabled:
-                return 10
-            self.soft_limits = bool(value)
-        elif number == 21:
-            self.hard_limits = bool(value)
-        elif number == 22:
-            self.homing_enabled = bool(value)
-        elif number == 25:
-            if value <= 0:
-                return 4
-            self.homing_rate_mm_min = value
-        elif 110 <= number <= 112:
-            if value <= 0:
-                return 4
-            self.max_rate_mm_min[number - 110] = value
-        elif 130 <= number <= 132:
-            if value < 0:
-                return 4
-            self.max_travel_mm[number - 130] = value
-        else:
-            return 3
-        return 0
-
-
-@dataclass
-class FaultInjection:
-    """Faults the simulator injects on purpose, for tests. Line numbers count from 1.
-
-    Attributes:
-        drop_reply_to_line: Never answer this line (it still runs); 0 = off.
-        garble_reply_to_line: Answer this line with a corrupt reply; 0 = off.
-        drop_reply_every_lines: Never answer every n-th line (lines n, 2n, ...); 0 = off.
-        garble_reply_every_lines: Answer every n-th line with a corrupt reply; 0 = off.
-        refuse_line_pattern: Answer lines matching this regex with `refuse_error_code`.
-        refuse_error_code: The error:N for refused lines.
-        alarm_axis: 'x', 'y' or 'z': raise `alarm_code` once when that axis crosses
-            `alarm_at_mm` while moving ('' = off).
-        alarm_at_mm: Position of that trip point [mm].
-        alarm_code: ALARM:N to raise (1 = hard limit).
-    """
-
-    drop_reply_to_line: int = 0
-    garble_reply_to_line: int = 0
-    drop_reply_every_lines: int = 0
-    garble_reply_every_lines: int = 0
-    refuse_line_pattern: str = ''
-    refuse_error_code: int = 20
-    alarm_axis: str = ''
-    alarm_at_mm: float = 0.0
-    alarm_code: int = 1
-
-
-@dataclass
-class _Move:
-    target: Vector3
-    rate_mm_s: float
-
-
-@dataclass
-class _Dwell:
-    seconds: float
-
-
-def _every(number: int, period: int) -> bool:
-    """Return True when line `number` is a multiple of `period` (0 = never)."""
-    return period > 0 and number % period == 0
 
 
 _WORD_RE = re.compile(r'([A-Z])([-+]?(?:\d+\.?\d*|\.\d+))?')
 _SETTING_RE = re.compile(r'^\$(\d+)=(.*)$')
 
 
-class GrblController:
+class GrblController(ControllerMotion):
     """Grbl 1.1 state machine: RX buffer, parser, planner, motion, status and alarms.
 
     Args:
@@ -159,30 +61,14 @@ class GrblController:
                  faults: FaultInjection | None = None,
                  on_line_received: Callable[[str], None] | None = None,
                  work_offset_mm: Vector3 = (0.0, 0.0, 0.0)) -> None:
-        self.settings = settings or ControllerSettings()
+        super().__init__(settings or ControllerSettings(), work_offset_mm)
         self.set_faults(faults or FaultInjection())
         self.on_line_received = on_line_received
-        self.work_offset_mm = work_offset_mm
-        self.output: deque[str] = deque()
-        self.position: list[float] = [0.0, 0.0, 0.0]
         self.lines_received = 0
         self.rx_overflow_bytes = 0
         self._rx_lines: deque[tuple[int, str]] = deque()
         self._rx_partial = bytearray()
-        self._planner: deque[_Move | _Dwell] = deque()
-        self._block: _Move | _Dwell | None = None
-        self._block_elapsed = 0.0
-        self._now = 0.0
-        self._hold_until: float | None = None
-        self._alarm_fired = False
         self._status_count = 0
-        self._pins = ''
-        # A line whose reply waits for something (homing, dwell, program end).
-        self._waiting: tuple[int, Callable[[], bool], list[str]] | None = None
-        self._homing_rate = 0.0
-        self.state = 'Idle'
-        self.sub_state = -1
-        self.critical = False
         self.power_cycle(0.0)
 
     def set_faults(self, faults: FaultInjection) -> None:
@@ -239,20 +125,6 @@ class GrblController:
             self.state = 'Idle'
         self._emit_banner()
 
-    def _moving(self) -> bool:
-        return self.state in ('Run', 'Home') or (self.state == 'Hold' and self.sub_state == 1)
-
-    def _raise_alarm(self, code: int) -> None:
-        self._planner.clear()
-        self._block = None
-        self._waiting = None
-        self._hold_until = None
-        self.state, self.sub_state = 'Alarm', -1
-        self.output.append(f'ALARM:{code}')
-        if code in CRITICAL_ALARMS:
-            self.critical = True
-            self.output.append('[MSG:Reset to continue]')
-
     # -- bytes in -----------------------------------------------------------------------------
 
     @property
@@ -289,20 +161,6 @@ class GrblController:
                 self._rx_partial.append(byte)
         self.advance(now)
 
-    def _feed_hold(self) -> None:
-        if self.state in ('Alarm', 'Home', 'Sleep'):
-            return
-        if self.state == 'Run':
-            self.state, self.sub_state = 'Hold', 1
-            self._hold_until = self._now + HOLD_DECELERATION_S
-        elif self.state == 'Idle':
-            self.state, self.sub_state = 'Hold', 0
-
-    def _cycle_start(self) -> None:
-        if self.state == 'Hold' and self.sub_state == 0:
-            self._hold_until = None
-            self.state, self.sub_state = ('Run' if self._block or self._planner else 'Idle'), -1
-
     # -- time ---------------------------------------------------------------------------------
 
     def advance(self, now: float) -> None:
@@ -312,92 +170,12 @@ class GrblController:
         self._run_motion(dt)
         self._process_lines()
 
-    def _run_motion(self, dt: float) -> None:
-        if self.state == 'Home':
-            _, reached = self._step_towards((0.0, 0.0, 0.0), self._homing_rate, dt)
-            if reached:
-                self.state, self.sub_state = 'Idle', -1
-            return
-        t = self._now - dt
-        while dt > 0.0 and (self.state == 'Run' or (self.state == 'Hold' and self.sub_state == 1)):
-            chunk = dt
-            if self.state == 'Hold':
-                remaining = (self._hold_until or t) - t
-                if remaining <= 0.0:
-                    self.sub_state, self._hold_until = 0, None
-                    break
-                chunk = min(dt, remaining)
-            if self._block is None:
-                if not self._planner:
-                    if self.state == 'Run':
-                        self.state, self.sub_state = 'Idle', -1
-                    else:
-                        self.sub_state, self._hold_until = 0, None
-                    break
-                self._block = self._planner.popleft()
-                self._block_elapsed = 0.0
-            used, finished = self._run_block(chunk)
-            if self.state == 'Alarm':
-                return
-            if finished:
-                self._block = None
-            t += used
-            dt -= used
-        if self.state == 'Run' and self._block is None and not self._planner:
-            self.state, self.sub_state = 'Idle', -1
-
-    def _run_block(self, dt: float) -> tuple[float, bool]:
-        """Run the current block for up to `dt` [s]; return (time used [s], finished)."""
-        block = self._block
-        if isinstance(block, _Dwell):
-            used = min(dt, block.seconds - self._block_elapsed)
-            self._block_elapsed += used
-            return used, self._block_elapsed >= block.seconds
-        assert block is not None
-        return self._step_towards(block.target, block.rate_mm_s, dt)
-
-    def _step_towards(self, target: Vector3, rate_mm_s: float, dt: float) -> tuple[float, bool]:
-        """Move towards `target` at `rate_mm_s` [mm/s] for up to `dt` [s].
-
-        Returns:
-            (time used [s], target reached).
-        """
-        delta = [target[i] - self.position[i] for i in range(3)]
-        distance = math.sqrt(sum(d * d for d in delta))
-        if distance <= 1e-9:
-            self.position = list(target)
-            return 0.0, True
-        start = list(self.position)
-        if rate_mm_s * dt >= distance:
-            self.position = list(target)
-            used, reached = distance / rate_mm_s, True
-        else:
-            step = rate_mm_s * dt
-            self.position = [self.position[i] + delta[i] * step / distance for i in range(3)]
-            used, reached = dt, False
-        self._check_trip(start)
-        return used, reached and self.state != 'Alarm'
-
-    def _check_trip(self, start: list[float]) -> None:
-        faults = self.faults
-        if self._alarm_fired or faults.alarm_axis.upper() not in AXES:
-            return
-        axis = AXES.index(faults.alarm_axis.upper())
-        low, high = sorted((start[axis], self.position[axis]))
-        if low <= faults.alarm_at_mm <= high and start[axis] != self.position[axis]:
-            self._alarm_fired = True
-            self.position[axis] = faults.alarm_at_mm
-            self._pins = AXES[axis]
-            self._raise_alarm(faults.alarm_code)
-
     # -- lines --------------------------------------------------------------------------------
 
     def _reply(self, number: int, text: str) -> None:
-        faults = self.faults
-        if number == faults.drop_reply_to_line or _every(number, faults.drop_reply_every_lines):
+        if self.faults.drops_reply_to(number):
             return
-        if number == faults.garble_reply_to_line \
-                or _every(number, faults.garble_reply_every_lines):
+        if self.faults.garbles_reply_to(number):
             text = GARBLED_REPLY
         self.output.append(text)
 
@@ -539,7 +317,7 @@ class GrblController:
                 return 'error:28'
             if words['P'] < 0:
                 return 'error:4'
-            self._planner.append(_Dwell(words['P']))
+            self._planner.append(PlannedDwell(words['P']))
             self._start_cycle()
             self._waiting = (number, self._planner_empty, [])
             return None
@@ -562,17 +340,6 @@ class GrblController:
         self._reset_modes()
         self._motion = 1
         self._feed = feed
-
-    def _planner_empty(self) -> bool:
-        return self._block is None and not self._planner and self.state != 'Run'
-
-    def _planned_end(self) -> list[float]:
-        for block in reversed(self._planner):
-            if isinstance(block, _Move):
-                return list(block.target)
-        if isinstance(self._block, _Move):
-            return list(self._block.target)
-        return list(self.position)
 
     def _plan_motion(self, words: dict[str, float], axes: list[str],
                      machine_coordinates: bool) -> str | None:
@@ -604,23 +371,11 @@ class GrblController:
         for i in range(3):
             if delta[i]:
                 rate = min(rate, self.settings.max_rate_mm_min[i] * distance / abs(delta[i]))
-        self._planner.append(_Move((target[0], target[1], target[2]), rate / 60.0))
+        self._planner.append(PlannedMove((target[0], target[1], target[2]), rate / 60.0))
         self._start_cycle()
         return 'ok'
 
-    def _start_cycle(self) -> None:
-        if self.state == 'Idle':
-            self.state, self.sub_state = 'Run', -1
-
     # -- status -------------------------------------------------------------------------------
-
-    def current_feed_mm_min(self) -> float:
-        """Return the feed of the move being run, 0 when stopped [mm/min]."""
-        if isinstance(self._block, _Move) and (self.state == 'Run' or self.sub_state == 1):
-            return self._block.rate_mm_s * 60.0
-        if self.state == 'Home':
-            return self._homing_rate * 60.0
-        return 0.0
 
     def status_report(self) -> str:
         """Return the `<...>` status report for the current state."""
@@ -638,3 +393,9 @@ class GrblController:
         if not self.settings.report_machine_position and self._status_count % 10 == 1:
             fields.append('WCO:' + ','.join(f'{value:.3f}' for value in self.work_offset_mm))
         return '<' + '|'.join(fields) + '>'
+
+
+__all__ = [
+    'ALARM_LOCK_MESSAGE', 'BANNER', 'GARBLED_REPLY', 'HOLD_DECELERATION_S', 'PLANNER_BLOCKS',
+    'ControllerSettings', 'FaultInjection', 'GrblController',
+]

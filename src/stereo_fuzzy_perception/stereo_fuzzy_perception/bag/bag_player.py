@@ -25,17 +25,13 @@ from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from stereo_fuzzy_perception.bag.bag_io import (
-    BagError,
-    BagInfo,
-    PlaybackClock,
-    absolute_topic,
-    read_info,
-    read_messages,
-    select_topics,
-)
+from stereo_fuzzy_perception.bag.bag_format import BagError, absolute_topic
 from stereo_fuzzy_perception.bag.bag_qos import playback_profile
+from stereo_fuzzy_perception.bag.bag_reader import read_info, read_messages
+from stereo_fuzzy_perception.bag.bag_summary import BagInfo
 from stereo_fuzzy_perception.bag.message_types import MessageTypeError, import_message_class
+from stereo_fuzzy_perception.bag.playback_clock import PlaybackClock
+from stereo_fuzzy_perception.bag.topic_selection import select_topics
 
 # How long to wait, after the last message, for reliable subscribers to acknowledge it.
 ACK_TIMEOUT_S = 5.0

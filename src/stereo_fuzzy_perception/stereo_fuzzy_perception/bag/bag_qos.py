@@ -28,7 +28,7 @@ from rosbags.interfaces import (
     QosTime,
 )
 
-from stereo_fuzzy_perception.bag.bag_io import BagError, absolute_topic
+from stereo_fuzzy_perception.bag.bag_format import BagError, absolute_topic
 
 PLAYBACK_MIN_DEPTH = 10
 

@@ -20,9 +20,11 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.subscription import Subscription
 
-from stereo_fuzzy_perception.bag.bag_io import BagWriter, absolute_topic, select_topics
+from stereo_fuzzy_perception.bag.bag_format import absolute_topic
 from stereo_fuzzy_perception.bag.bag_qos import profile_to_bag_qos, recording_profile
+from stereo_fuzzy_perception.bag.bag_writer import BagWriter
 from stereo_fuzzy_perception.bag.message_types import MessageTypeError, import_message_class
+from stereo_fuzzy_perception.bag.topic_selection import select_topics
 
 # Topics `--all` leaves out: every node's log and parameter events.
 EXCLUDED_FROM_ALL = ('/rosout', '/parameter_events')

@@ -24,13 +24,11 @@ import threading
 from collections.abc import Sequence
 from pathlib import Path
 
-from stereo_fuzzy_perception.bag.bag_io import (
-    COMPRESSIONS,
-    BagError,
-    format_info,
-    parse_remaps,
-    read_info,
-)
+from stereo_fuzzy_perception.bag.bag_format import BagError
+from stereo_fuzzy_perception.bag.bag_reader import read_info
+from stereo_fuzzy_perception.bag.bag_summary import format_info
+from stereo_fuzzy_perception.bag.bag_writer import COMPRESSIONS
+from stereo_fuzzy_perception.bag.topic_selection import parse_remaps
 
 
 def build_parser() -> argparse.ArgumentParser:

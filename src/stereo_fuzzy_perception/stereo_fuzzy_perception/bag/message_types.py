@@ -16,6 +16,7 @@ import re
 import sys
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -60,7 +61,7 @@ def find_msg_file(type_name: str) -> Path | None:
     return None
 
 
-def _referenced_types(field_type: tuple) -> set[str]:
+def _referenced_types(field_type: tuple[Any, Any]) -> set[str]:
     """Return the message types a parsed rosbags field type refers to."""
     kind, detail = field_type
     if kind == Nodetype.NAME:
@@ -77,7 +78,7 @@ def register_types(typestore: Typestore, type_names: Iterable[str]) -> None:
         MessageTypeError: When a definition cannot be found.
     """
     pending = [name for name in type_names if name not in typestore.fielddefs]
-    new_types: dict = {}
+    new_types: dict[str, Any] = {}
     seen: set[str] = set()
     while pending:
         type_name = pending.pop()
@@ -114,7 +115,8 @@ def import_message_class(type_name: str) -> type:
     package, kind, name = split_type_name(type_name)
     try:
         module = importlib.import_module(f'{package}.{kind}')
-        return getattr(module, name)
+        message_class: type = getattr(module, name)
+        return message_class
     except (ImportError, AttributeError) as error:
         raise MessageTypeError(f'cannot import {type_name} ({error}); is the workspace '
                                'that defines it sourced?') from None

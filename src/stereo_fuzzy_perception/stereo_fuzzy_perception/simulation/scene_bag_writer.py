@@ -38,14 +38,10 @@ from rclpy.serialization import serialize_message
 from rosbags.typesys.store import Typestore
 from std_msgs.msg import Header
 
-from stereo_fuzzy_perception.bag.bag_io import (
-    COMPRESSIONS,
-    BagError,
-    BagWriter,
-    format_info,
-    make_qos,
-    read_info,
-)
+from stereo_fuzzy_perception.bag.bag_format import BagError, make_qos
+from stereo_fuzzy_perception.bag.bag_reader import read_info
+from stereo_fuzzy_perception.bag.bag_summary import format_info
+from stereo_fuzzy_perception.bag.bag_writer import COMPRESSIONS, BagWriter
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 from stereo_fuzzy_perception.core.rig_pose import (

@@ -4,18 +4,10 @@ What comes out is what two real cameras and a stereo calibration would give: a l
 image, the calibration (K, D, R, P of each camera from cv2.stereoRectify with the rig's R, T, as
 a stereo calibration publishes it), and the ground truth (the centre of the object's top face).
 
-Camera conventions (pybullet's OpenGL camera, mapped to the ROS pinhole model):
-
-* fx = fy = (H / 2) / tan(vertical_fov / 2); principal point cx = W / 2, cy = H / 2 - 1.
-* Camera poses come from rig_geometry.StereoRig (optical frames: x right, y down, z forward).
-* Lens distortion is applied after rendering: the ideal image is resampled with cv2.remap so that
-  cv2.undistort with the published D recovers it. The ideal image is rendered with a margin so
-  that barrel distortion pulls in real scene content, not a black border.
-* Sensors: Gaussian noise, and a gain and offset of the right camera relative to the left.
-
-Textures are random and non-repeating (multi-octave value noise): window correlation needs them.
-Every face of a mesh gets explicit texture coordinates in metres, so texel density does not
-depend on the object's size. The lighting is mostly ambient so flat tops never saturate.
+The pieces live in their own modules and are importable from here too: render_camera (camera
+conventions, calibration, distortion maps), sensor_effects (lighting, noise, gain and offset,
+encodings) and scene_meshes (textures and meshes). The ideal image is rendered with a margin so
+that barrel distortion pulls in real scene content, not a black border.
 
 ROS-free: numpy, OpenCV and pybullet only.
 """
@@ -32,88 +24,43 @@ import cv2
 import numpy as np
 import pybullet
 
-from stereo_fuzzy_perception.core.camera_model import CameraCalibration, StereoCalibration
+from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.frame_transforms import quaternion_from_matrix
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+from stereo_fuzzy_perception.simulation.render_camera import (
+    LEFT_FRAME_ID,
+    RIGHT_FRAME_ID,
+    distortion_maps,
+    stereo_calibration,
+    view_matrix,
+)
+from stereo_fuzzy_perception.simulation.scene_meshes import (
+    TextureSettings,
+    object_mesh,
+    random_texture,
+    surface_mesh,
+    yaw_quaternion,
+)
 from stereo_fuzzy_perception.simulation.scene_model import (
     GroundTruth,
     ObjectType,
     Scene,
-    SceneObject,
     SimulatedCamera,
     random_scene,
 )
+from stereo_fuzzy_perception.simulation.sensor_effects import (
+    Lighting,
+    SensorModel,
+    apply_sensor,
+    to_encoding,
+)
 from stereo_fuzzy_perception.simulation.texture_families import NoiseScales, family_texture
 
-LEFT_FRAME_ID = 'left_camera_optical_frame'
-RIGHT_FRAME_ID = 'right_camera_optical_frame'
 RENDER_ENCODINGS = ('rgb8', 'bgr8', 'mono8')
-# OpenGL cameras look along -z with y up; optical frames look along +z with y down.
-_OPTICAL_TO_GL = np.diag([1.0, -1.0, -1.0])
 
 
 class RenderError(ValueError):
     """Rendering settings that cannot work, with the reason in the message."""
-
-
-@dataclass(frozen=True)
-class SensorModel:
-    """What the two cameras add to the ideal image.
-
-    Attributes:
-        noise_std: Standard deviation of additive Gaussian noise [grey levels of 255].
-        right_gain: Right camera's gain relative to the left [-].
-        right_offset: Right camera's offset relative to the left [grey levels of 255].
-        distortion: plumb_bob coefficients (k1, k2, p1, p2, k3), the same for both lenses.
-    """
-
-    noise_std: float = 0.0
-    right_gain: float = 1.0
-    right_offset: float = 0.0
-    distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
-
-    @property
-    def distorted(self) -> bool:
-        """Return True when the lenses distort."""
-        return any(value != 0.0 for value in self.distortion)
-
-
-@dataclass(frozen=True)
-class Lighting:
-    """TinyRenderer light: mostly ambient so textured tops keep their contrast.
-
-    Attributes:
-        direction: Direction toward the light in `world` [-].
-        ambient: Ambient coefficient [-].
-        diffuse: Diffuse coefficient [-].
-        specular: Specular coefficient [-].
-    """
-
-    direction: tuple[float, float, float] = (0.3, -0.5, 1.0)
-    ambient: float = 0.55
-    diffuse: float = 0.4
-    specular: float = 0.0
-
-
-@dataclass(frozen=True)
-class TextureSettings:
-    """Random texture sizes.
-
-    Attributes:
-        surface_half_extent_m: Half side of the square work surface, centred under the workspace.
-        surface_texture_px: Side of the surface texture [px]; it covers the whole surface.
-        object_texture_span_m: Span of the object texture [m] (texture coordinates in metres).
-        object_texture_px: Side of the object texture [px].
-        finest_feature_m: Cell size of the finest noise octave [m].
-        coarsest_feature_m: Cell size of the coarsest noise octave [m].
-    """
-
-    surface_half_extent_m: float = 0.6
-    surface_texture_px: int = 1024
-    object_texture_span_m: float = 0.25
-    object_texture_px: int = 512
-    finest_feature_m: float = 0.0024
-    coarsest_feature_m: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -143,176 +90,6 @@ class StereoFrame:
     right_mask: np.ndarray | None = field(default=None, repr=False)
     left_depth: np.ndarray | None = field(default=None, repr=False)
     right_depth: np.ndarray | None = field(default=None, repr=False)
-
-
-def stereo_calibration(camera: SimulatedCamera, rig: StereoRig,
-                       distortion: tuple[float, ...] = (0.0,) * 5,
-                       rectify_alpha: float = -1.0) -> StereoCalibration:
-    """Return the calibration a stereo calibration of this rig would publish.
-
-    Args:
-        camera: Image size and field of view of both cameras.
-        rig: Relative pose of the cameras (R, T of right <- left).
-        distortion: plumb_bob coefficients of both lenses.
-        rectify_alpha: cv2.stereoRectify's free scaling: -1 (OpenCV's default) keeps the
-            focal length of K, 0 keeps only valid pixels (zooms in), 1 keeps all pixels.
-
-    Returns:
-        Left and right CameraCalibration with K, D, R, P; right P[0, 3] = -fx' * baseline.
-    """
-    K = camera.intrinsics()
-    D = np.array(distortion, dtype=float)
-    rotation, translation = rig.right_from_left()
-    size = (camera.width, camera.height)
-    R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(
-        K, D, K, D, size, rotation, translation.reshape(3, 1),
-        flags=cv2.CALIB_ZERO_DISPARITY, alpha=rectify_alpha)
-    common: dict[str, Any] = {'width': camera.width, 'height': camera.height, 'K': K, 'D': D}
-    return StereoCalibration(
-        left=CameraCalibration(R=R1, P=P1, frame_id=LEFT_FRAME_ID, **common),
-        right=CameraCalibration(R=R2, P=P2, frame_id=RIGHT_FRAME_ID, **common))
-
-
-def random_texture(seed: int, size_px: int, span_m: float, settings: TextureSettings,
-                   tint: tuple[float, float, float]) -> np.ndarray:
-    """Return a non-repeating RGB uint8 texture of multi-octave value noise.
-
-    Args:
-        seed: Seed of the noise.
-        size_px: Side of the square texture [px].
-        span_m: What the texture covers [m] (sets the octaves' cell sizes in pixels).
-        settings: Finest and coarsest feature sizes.
-        tint: Mean colour (r, g, b) in [0, 1].
-    """
-    rng = np.random.default_rng(seed)
-    texel_m = span_m / size_px
-    cell_px = max(2.0, settings.finest_feature_m / texel_m)
-    noise = np.zeros((size_px, size_px), dtype=np.float32)
-    while cell_px <= max(2.0, settings.coarsest_feature_m / texel_m):
-        cells = int(math.ceil(size_px / cell_px)) + 3
-        grid = rng.random((cells, cells), dtype=np.float32)
-        grown = cv2.resize(grid, None, fx=cell_px, fy=cell_px, interpolation=cv2.INTER_CUBIC)
-        offset = int(cell_px)
-        noise += grown[offset:offset + size_px, offset:offset + size_px]
-        cell_px *= 2.0
-    low, high = np.percentile(noise, (1.0, 99.0))
-    shade = np.clip((noise - low) / max(high - low, 1e-6), 0.0, 1.0)
-    hue = rng.random((3,), dtype=np.float32) * 0.2 - 0.1
-    channels = [np.clip((0.25 + 0.75 * shade) * (tint[k] + hue[k]), 0.0, 1.0) for k in range(3)]
-    return np.round(np.stack(channels, axis=2) * 255.0).astype(np.uint8)
-
-
-def _ring(scene_object: SceneObject, segments: int) -> tuple[np.ndarray, np.ndarray]:
-    """Return the object's outline (counter-clockwise from above) and the outward normals."""
-    hx, hy = 0.5 * scene_object.size_x_m, 0.5 * scene_object.size_y_m
-    if scene_object.object_type.is_round:
-        angles = np.linspace(0.0, 2.0 * math.pi, segments, endpoint=False)
-        ring = np.stack([hx * np.cos(angles), hy * np.sin(angles)], axis=1)
-        return ring, np.stack([np.cos(angles), np.sin(angles)], axis=1)
-    ring = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
-    return ring, np.zeros_like(ring)
-
-
-def object_mesh(scene_object: SceneObject, span_m: float, segments: int = 96
-                ) -> dict[str, Any]:
-    """Return pybullet GEOM_MESH arguments for the object (top and sides, in its own frame).
-
-    Texture coordinates are in metres divided by `span_m`, so a texture spans `span_m`.
-    """
-    ring, radial = _ring(scene_object, segments)
-    height = scene_object.height_m
-    vertices: list[list[float]] = []
-    normals: list[list[float]] = []
-    uvs: list[list[float]] = []
-    indices: list[int] = []
-    # Top: a fan around the centre, counter-clockwise seen from above.
-    vertices.append([0.0, 0.0, height])
-    for x, y in ring:
-        vertices.append([float(x), float(y), height])
-    normals.extend([[0.0, 0.0, 1.0]] * (len(ring) + 1))
-    uvs.extend([[v[0] / span_m + 0.5, v[1] / span_m + 0.5] for v in vertices])
-    for k in range(len(ring)):
-        indices.extend([0, 1 + k, 1 + (k + 1) % len(ring)])
-    # Sides: one quad per edge, counter-clockwise seen from outside.
-    travelled = 0.0
-    round_object = scene_object.object_type.is_round
-    for k in range(len(ring)):
-        a, b = ring[k], ring[(k + 1) % len(ring)]
-        edge = b - a
-        length = float(np.hypot(*edge))
-        if round_object:
-            na, nb = radial[k], radial[(k + 1) % len(ring)]
-        else:
-            na = nb = np.array([edge[1], -edge[0]]) / length
-        first = len(vertices)
-        for point, normal, z, s in ((a, na, 0.0, travelled), (b, nb, 0.0, travelled + length),
-                                    (b, nb, height, travelled + length),
-                                    (a, na, height, travelled)):
-            vertices.append([float(point[0]), float(point[1]), z])
-            normals.append([float(normal[0]), float(normal[1]), 0.0])
-            uvs.append([(s / span_m) % 1.0 if not round_object else s / span_m, z / span_m])
-        indices.extend([first, first + 1, first + 2, first, first + 2, first + 3])
-        travelled += length
-    # Keep side coordinates inside the texture (a round side is one strip around the object).
-    side_uvs = np.array(uvs[len(ring) + 1:])
-    if round_object and side_uvs[:, 0].max() > 1.0:
-        side_uvs[:, 0] /= side_uvs[:, 0].max()
-    uvs[len(ring) + 1:] = side_uvs.tolist()
-    return {'vertices': vertices, 'indices': indices, 'uvs': uvs, 'normals': normals}
-
-
-def _surface_mesh(half_extent_m: float) -> dict[str, Any]:
-    h = half_extent_m
-    return {'vertices': [[-h, -h, 0.0], [h, -h, 0.0], [h, h, 0.0], [-h, h, 0.0]],
-            'indices': [0, 1, 2, 0, 2, 3],
-            'uvs': [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
-            'normals': [[0.0, 0.0, 1.0]] * 4}
-
-
-def yaw_quaternion(yaw_rad: float) -> tuple[float, float, float, float]:
-    """Return the (x, y, z, w) quaternion of a rotation about z by `yaw_rad` [rad]."""
-    return (0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0))
-
-
-def _view_matrix(world_from_camera: np.ndarray) -> list[float]:
-    gl_pose = np.eye(4)
-    gl_pose[:3, :3] = world_from_camera[:3, :3] @ _OPTICAL_TO_GL
-    gl_pose[:3, 3] = world_from_camera[:3, 3]
-    return np.linalg.inv(gl_pose).flatten(order='F').tolist()
-
-
-def distortion_maps(camera: SimulatedCamera, distortion: tuple[float, ...]
-                    ) -> tuple[np.ndarray, np.ndarray]:
-    """Return (map_x, map_y): for each distorted pixel, where it lies in the ideal image [px].
-
-    cv2.remap(ideal, map_x, map_y) then gives the image a lens with `distortion` would see.
-    """
-    K = camera.intrinsics()
-    u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64),
-                       np.arange(camera.height, dtype=np.float64))
-    distorted = np.stack([u.ravel(), v.ravel()], axis=1).reshape(-1, 1, 2)
-    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-9)
-    ideal = cv2.undistortPoints(distorted, K, np.array(distortion, dtype=float), R=np.eye(3),
-                                P=K, criteria=criteria).reshape(camera.height, camera.width, 2)
-    return ideal[..., 0].astype(np.float32), ideal[..., 1].astype(np.float32)
-
-
-def _apply_sensor(image: np.ndarray, rng: np.random.Generator, gain: float, offset: float,
-                  noise_std: float) -> np.ndarray:
-    if gain == 1.0 and offset == 0.0 and noise_std == 0.0:
-        return image
-    values = image.astype(np.float32) * gain + offset
-    if noise_std > 0.0:
-        values += rng.normal(0.0, noise_std, size=values.shape).astype(np.float32)
-    return np.clip(np.round(values), 0, 255).astype(np.uint8)
-
-
-def _convert(rgb: np.ndarray, encoding: str) -> np.ndarray:
-    if encoding == 'rgb8':
-        return np.ascontiguousarray(rgb)
-    if encoding == 'bgr8':
-        return cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
-    return cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
 
 
 class SceneRenderer:
@@ -413,7 +190,7 @@ class SceneRenderer:
         surface_texture = self._load_texture('surface', self._texture(
             scene.surface_texture_family, scene.surface_texture_seed,
             settings.surface_texture_px, surface_span, scene.surface_tint))
-        self._add_mesh(_surface_mesh(settings.surface_half_extent_m), (0.2, 0.15, 0.0),
+        self._add_mesh(surface_mesh(settings.surface_half_extent_m), (0.2, 0.15, 0.0),
                        (0.0, 0.0, 0.0, 1.0), surface_texture)
         scene_object = scene.scene_object
         object_texture = self._load_texture('object', self._texture(
@@ -438,7 +215,7 @@ class SceneRenderer:
         light = lighting or self.lighting
         flags = 0 if segmentation else pybullet.ER_NO_SEGMENTATION_MASK
         _, _, rgba, buffer, seg = pybullet.getCameraImage(
-            width, height, _view_matrix(world_from_camera), projection,
+            width, height, view_matrix(world_from_camera), projection,
             lightDirection=list(light.direction), lightAmbientCoeff=light.ambient,
             lightDiffuseCoeff=light.diffuse, lightSpecularCoeff=light.specular, shadow=0,
             renderer=pybullet.ER_TINY_RENDERER, flags=flags, physicsClientId=self._client)
@@ -487,9 +264,9 @@ class SceneRenderer:
             self.rig.world_from_left_camera(), with_maps, lighting)
         right_rgb, right_ids, right_depth = self._render_view(
             self.rig.world_from_right_camera(), with_maps, lighting)
-        left = _apply_sensor(_convert(left_rgb, self.encoding), rng, 1.0, 0.0, sensor.noise_std)
-        right = _apply_sensor(_convert(right_rgb, self.encoding), rng, sensor.right_gain,
-                              sensor.right_offset, sensor.noise_std)
+        left = apply_sensor(to_encoding(left_rgb, self.encoding), rng, 1.0, 0.0, sensor.noise_std)
+        right = apply_sensor(to_encoding(right_rgb, self.encoding), rng, sensor.right_gain,
+                             sensor.right_offset, sensor.noise_std)
         return StereoFrame(
             left=left, right=right, encoding=self.encoding, calibration=self.calibration,
             ground_truth=GroundTruth.of(scene), scene=scene,
@@ -556,9 +333,9 @@ class SceneRenderer:
         left_rgb = self._render_oversampled(self.rig.world_from_left_camera(), oversampling)
         right_rgb = self._render_oversampled(self.rig.world_from_right_camera(), oversampling)
         sensor = self.sensor
-        left = _apply_sensor(_convert(left_rgb, self.encoding), rng, 1.0, 0.0, sensor.noise_std)
-        right = _apply_sensor(_convert(right_rgb, self.encoding), rng, sensor.right_gain,
-                              sensor.right_offset, sensor.noise_std)
+        left = apply_sensor(to_encoding(left_rgb, self.encoding), rng, 1.0, 0.0, sensor.noise_std)
+        right = apply_sensor(to_encoding(right_rgb, self.encoding), rng, sensor.right_gain,
+                             sensor.right_offset, sensor.noise_std)
         return left, right
 
     def _render_oversampled(self, world_from_camera: np.ndarray, factor: int) -> np.ndarray:
