@@ -117,7 +117,8 @@ def test_every_pair_and_match_is_delivered_or_counted_lost(ros_context, start_ro
                       'the last message to reach the fuzzy node', timeout=120.0)
         except AssertionError as error:
             raise AssertionError(f'{error}: {unaccounted(sync, correlation, fuzzy, pairs_sent)}'
-                                 f'; {correlation.diagnostics}; {fuzzy.diagnostics}') from None
+                                 f'; {correlation.diagnostics}; {fuzzy.diagnostics}; fuzzy node '
+                                 f'log:\n{fuzzy_process.output()[-3000:]}') from None
         try:
             sync.wait(lambda: not unaccounted(sync, correlation, fuzzy, pairs_sent),
                       'every count to agree')
