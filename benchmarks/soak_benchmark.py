@@ -18,7 +18,9 @@ Checked at the end (exit code 1 when one fails):
   order; no motion line follows itself (a re-sent line); at most 3 motion lines per best point.
 - Decisions: the best_point/decision messages received equal the complete pairs played minus
   the drops the nodes count on /diagnostics (sync: dropped + unpaired; correlation: dropped);
-  each stage's counters are printed too.
+  each stage's counters are printed too, and the camera-input messages the sync node missed
+  (DDS-reported, exact; from stamp gaps, estimated), which explain a broken identity but never
+  balance it.
 - No process died, and every process exits 0 when stopped.
 - Resident memory (VmRSS from /proc/<pid>/status, sampled every --sample-period-s) of every
   process grows by at most --max-rss-growth-pct from the end of the warm-up to the end.
@@ -176,6 +178,11 @@ class PairAccounting:
     correlation_dropped: dict[str, int]
     fuzzy_decisions: int
     decisions_received: int
+    # Camera-input messages the sync node missed (most on any topic): reported by DDS (exact)
+    # and estimated from stamp gaps (any cause, queue overwrites included). Never counted as
+    # drops: they explain a broken identity, they do not balance it.
+    sync_inputs_lost: int = 0
+    sync_inputs_estimated_lost: int = 0
 
     @property
     def counted_drops(self) -> int:
@@ -207,6 +214,9 @@ def pair_problems(accounting: PairAccounting) -> list[str]:
     for what, got, owed in stages:
         if got != owed:
             problems.append(f'stage: {what} {got}, its input gave {owed}')
+    if a.sync_received != a.played:
+        problems.append(f'camera inputs the sync node missed: {a.sync_inputs_estimated_lost} '
+                        f'estimated from stamp gaps, {a.sync_inputs_lost} reported lost by DDS')
     return problems
 
 
@@ -239,7 +249,12 @@ def accounting_from(played: int, decisions: int,
                              if key.startswith('dropped ')},
         fuzzy_decisions=diagnostic_int(fuzzy, 'decisions made')
         + diagnostic_int(fuzzy, 'decisions refused'),
-        decisions_received=decisions)
+        decisions_received=decisions,
+        sync_inputs_lost=max(diagnostic_int(sync, f'lost before delivery {topic}')
+                             for topic in INPUT_TOPICS),
+        sync_inputs_estimated_lost=max(
+            diagnostic_int(sync, f'{topic} estimated lost (stamp gaps)')
+            for topic in INPUT_TOPICS))
 
 
 # --- the watcher ----------------------------------------------------------------------------
@@ -551,7 +566,9 @@ def print_report(result: SoakResult, args: argparse.Namespace, machine: str) -> 
     print(f'| decisions = pairs - counted drops | {a.decisions_received} = {a.played} - '
           f'{a.counted_drops} (sync dropped {a.sync_dropped}, unpaired {a.sync_unpaired}, '
           f'correlation ' + ', '.join(f'{k} {v}' for k, v in a.correlation_dropped.items())
-          + f') | {"ok" if pairs_ok else "FAILED"} |')
+          + f'); camera inputs missed by the sync node: {a.sync_inputs_estimated_lost} '
+          f'estimated (stamp gaps), {a.sync_inputs_lost} reported by DDS '
+          f'| {"ok" if pairs_ok else "FAILED"} |')
     alive = not result.died and not any(result.exit_codes.values())
     print('| no process died, all exit 0 | '
           + ', '.join(f'{name} {code}' for name, code in result.exit_codes.items())

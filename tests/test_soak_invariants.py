@@ -89,6 +89,19 @@ def test_a_pair_lost_without_a_count_is_found():
                for problem in problems), problems
 
 
+def test_camera_inputs_the_sync_node_missed_are_named_but_not_counted_as_drops():
+    stats = diagnostics(97, 1, 94, 4, 94)
+    stats[SYNC_STATUS].update({'left/image_raw estimated lost (stamp gaps)': '2',
+                               'lost before delivery left/image_raw': '1'})
+    accounting = accounting_from(100, 94, stats)
+    assert accounting.counted_drops == 5  # the estimate does not balance the identity
+    problems = pair_problems(accounting)
+    assert any('sync node received complete scenes 98, its input gave 100' in problem
+               for problem in problems), problems
+    assert any('2 estimated from stamp gaps, 1 reported lost by DDS' in problem
+               for problem in problems), problems
+
+
 def test_memory_growth_above_the_limit_is_found():
     warm = MemorySample(120.0, 'warm-up', {'correlation_node': 200_000, 'fake_gantry': 50_000})
     end = MemorySample(600.0, 'end', {'correlation_node': 230_000, 'fake_gantry': 50_500})

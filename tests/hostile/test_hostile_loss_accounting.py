@@ -112,8 +112,13 @@ def test_every_pair_and_match_is_delivered_or_counted_lost(ros_context, start_ro
         # of the burst shows as a gap before it.
         arrived_before = count(fuzzy, 'matches received')
         send(BURST + 1)
-        sync.wait(lambda: count(fuzzy, 'matches received') > arrived_before,
-                  'the last message to reach the fuzzy node', timeout=120.0)
+        try:
+            sync.wait(lambda: count(fuzzy, 'matches received') > arrived_before,
+                      'the last message to reach the fuzzy node', timeout=120.0)
+        except AssertionError as error:
+            raise AssertionError(f'{error}: {unaccounted(sync, correlation, fuzzy, pairs_sent)}'
+                                 f'; {correlation.diagnostics}; {fuzzy.diagnostics}; fuzzy node '
+                                 f'log:\n{fuzzy_process.output()[-3000:]}') from None
         try:
             sync.wait(lambda: not unaccounted(sync, correlation, fuzzy, pairs_sent),
                       'every count to agree')

@@ -31,6 +31,7 @@ from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 from stereo_fuzzy_msgs.msg import StereoPair
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.image_encoding import SUPPORTED_ENCODINGS, ImageEncodingError
+from stereo_fuzzy_perception.core.stamp_gaps import StampGaps
 from stereo_fuzzy_perception.core.stamp_pairing import Evicted, StampSynchronizer, seconds_to_ns
 from stereo_fuzzy_perception.nodes import qos, topic_names
 from stereo_fuzzy_perception.nodes.conversions import (
@@ -119,13 +120,17 @@ class PairStatistics:
         self.unpaired: Counter[str] = Counter()
         self.lost: Counter[str] = Counter()
         self.received: Counter[str] = Counter()
+        # Frames missing between received stamps, per input topic: queue overwrites included.
+        self.stamp_gaps = {topic: StampGaps() for topic in INPUT_TOPICS}
         self._drop_times: deque[float] = deque(maxlen=1000)
         self._last_report = (time.monotonic(), 0, 0)
 
-    def count_received(self, topic: str) -> None:
-        """Count one message received on an input topic."""
+    def count_received(self, topic: str, stamp_ns: int) -> int:
+        """Count one message received on an input topic; return the frames its stamp shows
+        missing since the previous one (an estimate)."""
         with self._lock:
             self.received[topic] += 1
+            return self.stamp_gaps[topic].observe(stamp_ns)
 
     def count_in(self) -> None:
         """Count one set of four entering the checks."""
@@ -173,6 +178,8 @@ class PairStatistics:
                 'unpaired': dict(self.unpaired),
                 'lost': dict(self.lost),
                 'received': dict(self.received),
+                'stamp_gaps': {topic: gaps.report(topic)
+                               for topic, gaps in self.stamp_gaps.items()},
                 'input_rate_hz': (self.pairs_in - last_in) / elapsed,
                 'output_rate_hz': (self.pairs_out - last_out) / elapsed,
                 'recent_drops': sum(1 for stamp in self._drop_times
@@ -223,8 +230,13 @@ class StereoSyncNode(Node):
             f'queue {self.settings.queue_size}, {self.settings.input_reliability})')
 
     def _on_input(self, stream: int, msg: Image | CameraInfo) -> None:
-        self.statistics.count_received(INPUT_TOPICS[stream])
-        result = self._synchronizer.add(stream, stamp_to_ns(msg.header.stamp), msg)
+        stamp_ns = stamp_to_ns(msg.header.stamp)
+        if self.statistics.count_received(INPUT_TOPICS[stream], stamp_ns):
+            self.get_logger().warning(
+                f'{INPUT_TOPICS[stream]}: frames missing before stamp {stamp_ns * 1e-9:.6f} s '
+                '(stamp gap; estimated lost in all: see /diagnostics)',
+                throttle_duration_sec=ERROR_THROTTLE_S)
+        result = self._synchronizer.add(stream, stamp_ns, msg)
         for evicted in result.evicted:
             self._on_evicted(evicted)
         if result.matched is not None:
@@ -314,6 +326,7 @@ class StereoSyncNode(Node):
                    for topic in INPUT_TOPICS]
         values += [(f'lost before delivery {topic}', report['lost'].get(topic, 0))
                    for topic in INPUT_TOPICS]
+        values += [item for gaps in report['stamp_gaps'].values() for item in gaps.items()]
         status.values = [KeyValue(key=key, value=str(value)) for key, value in values]
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()
