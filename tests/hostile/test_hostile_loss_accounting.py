@@ -87,6 +87,11 @@ def test_every_pair_and_match_is_delivered_or_counted_lost(ros_context, start_ro
                   and sync.node.count_subscribers('pair') > 0
                   and sync.node.count_subscribers('matches') > 0,
                   'the three nodes to subscribe (numba warm-up)', timeout=180.0)
+        # The probe seeing the fuzzy node's subscription does not mean DDS has matched it to the
+        # correlation node's writer: both ends say so in /diagnostics.
+        sync.wait(lambda: count(correlation, 'matches subscribers') >= 1
+                  and count(fuzzy, 'matches publishers') >= 1,
+                  'the correlation and fuzzy nodes to be connected on matches', timeout=180.0)
         pairs_sent = None if source == 'camera_sets' else BURST + 1
 
         def send(stamp: int) -> None:

@@ -339,6 +339,9 @@ class CorrelationNode(Node):
                    for name, ms in self.last_timings_ms.items()},
                 'mean processing time [ms]': round(self._total_ms / self.processed, 2)
                 if self.processed else 0.0,
+                # Readers DDS has matched to the matches writer: what is published reaches them.
+                f'{topic_names.MATCHES} subscribers':
+                    self.matches_publisher.get_subscription_count(),
             }
             last_error = self.last_error
             errors = sum(count for reason, count in self.dropped.items()

@@ -362,6 +362,10 @@ class FuzzyBestPointNode(Node):
         values += [(f'refused {reason}', count) for reason, count in refused.items()]
         with self._lock:
             values += list(self.matches_sequence.report(topic_names.MATCHES).items())
+        # Whether DDS has matched a writer to this reader: 0 while matches are published means
+        # discovery has not connected the two nodes (nothing can arrive, nothing counts as lost).
+        values.append((f'{topic_names.MATCHES} publishers',
+                       self.matches_subscription.get_publisher_count()))
         status.values = [KeyValue(key=key, value=str(value)) for key, value in values]
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()
