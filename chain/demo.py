@@ -28,9 +28,13 @@ import numpy as np
 import yaml
 from stereo_fuzzy_perception.nodes.topic_names import (
     BEST_POINT,
+    DECISION,
+    MARKERS,
     MATCHES,
     PAIR,
+    POINTS,
     STEREO_NAMESPACE,
+    TF_STATIC,
     in_namespace,
 )
 
@@ -53,7 +57,11 @@ from chain.ros_domains import reserved_domain_id
 
 DEFAULT_BAG = REPO_ROOT / 'bags' / 'demo_scenes'
 DEFAULT_PARAMS = REPO_ROOT / 'chain' / 'demo_params.yaml'
-OUTPUT_TOPICS = ('best_point', 'best_point/decision', 'gantry/state')
+# What the outputs bag holds: the decisions and the gantry for the regression comparison, and
+# the point cloud, the markers and the transforms that place them in `world`, so the bag opens
+# in Foxglove or RViz with everything aligned (tests/test_whole_chain.py checks every frame).
+OUTPUT_TOPICS = (BEST_POINT, DECISION, 'gantry/state', MARKERS,
+                 in_namespace(STEREO_NAMESPACE, POINTS), TF_STATIC, '/tf')
 # The demo and the regression test pass an object when its best point is within 8 mm of the
 # top-face centre: the tool lands on the top face of the smallest object (3 cm across). The
 # stricter 3 mm success rate of the chapter's Table 1 is in benchmarks/table1_benchmark.py.

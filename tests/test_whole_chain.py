@@ -181,3 +181,45 @@ def test_bag_through_the_whole_chain(ros_domain_id, tmp_path, bag):
         f'processes did not exit cleanly: {run.exit_codes}')
     pictures = sorted((tmp_path / 'demo').glob('object_*.png'))
     assert len(pictures) == len(results), 'a picture per object was expected'
+    assert_every_frame_resolves_to_world(tmp_path / 'demo' / 'outputs_bag')
+
+
+def assert_every_frame_resolves_to_world(outputs_bag) -> None:
+    """The outputs bag opens in Foxglove / RViz aligned: it holds the cloud, the markers and the
+    best points, and every frame_id they carry reaches `world` through its recorded /tf_static
+    and /tf."""
+    from stereo_fuzzy_perception.bag.bag_io import read_info, read_messages
+    from stereo_fuzzy_perception.bag.message_types import project_typestore
+
+    topics = {topic.name: topic.msgtype for topic in read_info(outputs_bag).topics}
+    for needed in ('/stereo/points', '/best_point/markers', '/best_point', '/tf_static'):
+        assert needed in topics, f'{needed} not recorded: {sorted(topics)}'
+    typestore = project_typestore(topics.values())
+    parents: dict[str, str] = {}
+    frames: dict[str, set[str]] = {}
+    for message in read_messages(outputs_bag, list(topics)):
+        decoded = typestore.deserialize_cdr(message.data, message.msgtype)
+        if message.topic in ('/tf_static', '/tf'):
+            for transform in decoded.transforms:
+                parents[transform.child_frame_id] = transform.header.frame_id
+            continue
+        headers = ([marker.header for marker in decoded.markers] if hasattr(decoded, 'markers')
+                   else [decoded.header] if hasattr(decoded, 'header') else [])
+        for header in headers:
+            frames.setdefault(message.topic, set()).add(header.frame_id)
+    assert frames.get('/stereo/points') and frames.get('/best_point/markers'), frames
+
+    def reaches_world(frame: str) -> bool:
+        seen = set()
+        while frame != 'world':
+            if frame in seen or frame not in parents:
+                return False
+            seen.add(frame)
+            frame = parents[frame]
+        return True
+
+    unresolved = {topic: sorted(frame for frame in names if not reaches_world(frame))
+                  for topic, names in frames.items()}
+    assert not any(unresolved.values()), (
+        f'frames that the recorded transforms do not place in world: {unresolved}; '
+        f'transforms child -> parent: {parents}')
