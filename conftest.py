@@ -37,4 +37,4 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(skip)
 
 
-pytest_plugins = ['ros_fixtures']
+pytest_plugins = ['ros_fixtures', 'gantry_harness']

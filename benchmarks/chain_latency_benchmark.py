@@ -37,7 +37,6 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -48,7 +47,7 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))
 
 from chain.processes import ProcessGroup, wait_for  # noqa: E402
-from chain.ros_domains import reserved_domain_id  # noqa: E402
+from chain.ros_domains import exported_domain_id  # noqa: E402
 
 PACKAGE = 'stereo_fuzzy_perception'
 NODES = ('stereo_sync_node', 'correlation_node', 'fuzzy_best_point_node')
@@ -74,15 +73,6 @@ SCENE_OBJECTS = ('cubic_square', 'cylinder', 'cubic_rectangle', 'circle')
 def progress(text: str) -> None:
     """Print a progress line to stderr."""
     print(f'[chain-latency] {text}', file=sys.stderr, flush=True)
-
-
-@contextlib.contextmanager
-def reserved_domain() -> Iterator[int]:
-    """Hold a ROS domain id no test or benchmark on this machine holds, exported to children."""
-    with reserved_domain_id() as domain_id:
-        os.environ['ROS_DOMAIN_ID'] = str(domain_id)
-        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-        yield domain_id
 
 
 # --- input pairs --------------------------------------------------------------------------------
@@ -498,7 +488,7 @@ def run(args: argparse.Namespace) -> list[Measurement]:
     progress(f'rendering {args.scenes} scenes')
     pairs = render_pairs(args.scenes)
     log_dir = Path(args.log_dir or tempfile.mkdtemp(prefix='chain_latency_'))
-    with reserved_domain() as domain_id:
+    with exported_domain_id() as domain_id:
         progress(f'ROS_DOMAIN_ID {domain_id}, node logs in {log_dir}')
         group = ProcessGroup(log_dir)
         context = rclpy.Context()

@@ -28,7 +28,7 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO_ROOT), str(REPO_ROOT / 'tests' / 'support')]
 
 from chain.processes import ProcessGroup, wait_for  # noqa: E402
-from chain.ros_domains import reserved_domain_id  # noqa: E402
+from chain.ros_domains import exported_domain_id  # noqa: E402
 
 INPUTS = ('left/image_raw', 'left/camera_info', 'right/image_raw', 'right/camera_info')
 CORRELATION_DROPS = ('superseded', 'image_too_large', 'calibration', 'size_mismatch',
@@ -76,8 +76,7 @@ def main() -> int:
     parser.add_argument('--rate', type=float, default=10.0, help='camera sets per second')
     parser.add_argument('--log-dir', type=Path, default=REPO_ROOT / 'output' / 'hostile_soak')
     options = parser.parse_args()
-    with reserved_domain_id() as domain_id, tempfile.TemporaryDirectory() as folder:
-        os.environ.update(ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    with exported_domain_id(), tempfile.TemporaryDirectory() as folder:
         return soak(options, Path(folder))
 
 

@@ -48,10 +48,10 @@ from benchmarks.soak_benchmark import (  # noqa: E402
     PLAYER_DELAY_S,
     MemorySample,
     growth_pct,
-    reserved_domain,
     sample_memory,
 )
 from chain.processes import ProcessGroup, executable_path, wait_for  # noqa: E402
+from chain.ros_domains import exported_domain_id  # noqa: E402
 
 # node -> (the input topic it subscribes, the output topic this process watches)
 NODE_TOPICS = {
@@ -264,7 +264,7 @@ def main(argv: list[str] | None = None) -> int:
     output = Path(args.output or tempfile.mkdtemp(prefix='footprint_'))
     cache_dir = Path(tempfile.mkdtemp(prefix='footprint_numba_cache_'))
     load_before = os.getloadavg()[0]
-    with reserved_domain() as domain_id:
+    with exported_domain_id() as domain_id:
         progress(f'ROS_DOMAIN_ID {domain_id}, logs in {output}')
         cold, _ = run_once('empty cache', cache_dir, output / 'empty_cache', domain_id,
                            args.rate, 1, [])

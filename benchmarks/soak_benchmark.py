@@ -36,7 +36,7 @@ import os
 import sys
 import tempfile
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -380,17 +380,6 @@ class Watcher:
 
 # --- the run --------------------------------------------------------------------------------
 
-@contextlib.contextmanager
-def reserved_domain() -> Iterator[int]:
-    """Hold a ROS domain id no test or benchmark on this machine holds, exported to children."""
-    from chain.ros_domains import reserved_domain_id
-
-    with reserved_domain_id() as domain_id:
-        os.environ['ROS_DOMAIN_ID'] = str(domain_id)
-        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-        yield domain_id
-
-
 @dataclass
 class SoakResult:
     """What one soak run measured."""
@@ -464,7 +453,9 @@ def run(args: argparse.Namespace) -> SoakResult:
     problems: list[str] = []
     memory: list[MemorySample] = []
     died: list[str] = []
-    with reserved_domain() as domain_id:
+    from chain.ros_domains import exported_domain_id
+
+    with exported_domain_id() as domain_id:
         progress(f'ROS_DOMAIN_ID {domain_id}, logs in {output}')
         group = ProcessGroup(output / 'logs')
         context = rclpy.Context()

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import os
 import random
 import tempfile
 from collections.abc import Iterator
@@ -46,3 +47,13 @@ def reserved_domain_id() -> Iterator[int]:
         return
     raise NoFreeDomainError(
         f'all ROS domain ids {DOMAIN_IDS.start}..{DOMAIN_IDS.stop - 1} are in use')
+
+
+@contextlib.contextmanager
+def exported_domain_id() -> Iterator[int]:
+    """Hold a free domain id (reserved_domain_id) and export it, with discovery kept on this
+    host, to the processes this one starts: what a benchmark's chain runs in."""
+    with reserved_domain_id() as domain_id:
+        os.environ['ROS_DOMAIN_ID'] = str(domain_id)
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        yield domain_id

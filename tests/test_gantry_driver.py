@@ -21,23 +21,6 @@ MOVE_100_200_50 = ['G53 G1 Z150.000 F1000.0', 'G53 G1 X100.000 Y200.000 F1500.0'
 MOVE_300_0_15 = ['G53 G1 Z150.000 F1000.0', 'G53 G1 X300.000 Y0.000 F1500.0']
 
 
-@pytest.fixture
-def gantry(ros_context, tmp_path):
-    """Factory: start a simulator and a driver (with parameter overrides) for one test."""
-    started = []
-
-    def start(overrides=None, **simulator_options):
-        simulator = start_simulator(tmp_path, **simulator_options)
-        client = GantryClient(ros_context, tmp_path, overrides or {})
-        started.append((simulator, client))
-        return simulator, client
-
-    yield start
-    for simulator, client in started:
-        client.close()
-        simulator.stop()
-
-
 def test_best_point_sends_the_expected_lines_and_ends_idle_at_the_target(gantry):
     simulator, client = gantry()
     client.wait_ready()

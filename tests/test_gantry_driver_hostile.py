@@ -9,29 +9,12 @@ import subprocess
 
 import pytest
 from cartesian_3p_driver.grbl_controller import ControllerSettings
-from gantry_harness import TIMEOUT_S, GantryClient, start_simulator
+from gantry_harness import TIMEOUT_S, GantryClient
 from ros_fixtures import executable_path
 
 pytestmark = pytest.mark.ros
 
 CONNECT = ['$$', 'G21 G90 G94']
-
-
-@pytest.fixture
-def gantry(ros_context, tmp_path):
-    """Factory: start a simulator and a driver (with parameter overrides) for one test."""
-    started = []
-
-    def start(overrides=None, **simulator_options):
-        simulator = start_simulator(tmp_path, **simulator_options)
-        client = GantryClient(ros_context, tmp_path, overrides or {})
-        started.append((simulator, client))
-        return simulator, client
-
-    yield start
-    for simulator, client in started:
-        client.close()
-        simulator.stop()
 
 
 def set_parameter_remotely(client, name, value):

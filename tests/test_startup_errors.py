@@ -55,12 +55,7 @@ def test_bad_start_up_value_ends_the_node_with_one_fatal_line(
     for parameter in parameters:
         arguments += ['-p', parameter]
     process = start_ros_process(PACKAGE_OF[executable], executable, *arguments)
-    try:
-        process.process.wait(TIMEOUT)
-    except Exception:
-        pytest.fail(f'{executable} {parameters} still runs after {TIMEOUT} s:\n'
-                    f'{process.output()}')
-    output = process.output()
+    output = process.wait_for_exit(TIMEOUT)
     lines = [line for line in output.splitlines() if line.strip()]
     assert process.process.returncode != 0, f'{executable} exited 0 with {parameters}'
     assert 'Traceback' not in output, output
@@ -85,8 +80,7 @@ def test_baseline_the_calibration_files_contradict_ends_the_node_with_both_numbe
         'stereo_fuzzy_perception', 'fuzzy_best_point_node', '--ros-args',
         '-p', 'rig.baseline_m:=0.1', '-p', f'left_calibration_file:={tmp_path / "left.yaml"}',
         '-p', f'right_calibration_file:={tmp_path / "right.yaml"}')
-    process.process.wait(TIMEOUT)
-    lines = [line for line in process.output().splitlines() if line.strip()]
+    lines = [line for line in process.wait_for_exit(TIMEOUT).splitlines() if line.strip()]
     assert process.process.returncode != 0
     assert len(lines) == 1, lines
     for word in ('[FATAL]', 'rig.baseline_m=0.1000 m', 'baseline 0.0600 m', 'allowed'):

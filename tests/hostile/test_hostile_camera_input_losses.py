@@ -27,28 +27,23 @@ BURST = 500  # sets, 2000 messages, published back to back
 MAX_TAIL = 20  # sets sent one at a time after the burst, until one is paired
 
 
-def count(probe: HostileProbe, key: str) -> int:
-    value = probe.diagnostic_value(key)
-    return int(value) if value is not None else 0
-
-
 def unaccounted(probe: HostileProbe, sent: int) -> list[str]:
     """Return the accounting identities the node's latest report breaks (empty: all hold)."""
     problems = []
     for topic in INPUTS:
-        received = count(probe, f'received {topic}')
-        estimated = count(probe, f'{topic} estimated lost (stamp gaps)')
-        reported = count(probe, f'lost before delivery {topic}')
+        received = probe.counter(f'received {topic}')
+        estimated = probe.counter(f'{topic} estimated lost (stamp gaps)')
+        reported = probe.counter(f'lost before delivery {topic}')
         if received + estimated != sent:
             problems.append(f'{topic}: {received} received + {estimated} estimated lost != '
                             f'{sent} sent ({reported} reported lost by DDS)')
         if reported > estimated:
             problems.append(f'{topic}: DDS reported {reported} lost, more than the '
                             f'{estimated} missing stamps')
-    pairs_in, pairs_out = count(probe, 'pairs in'), count(probe, 'pairs out')
-    if pairs_in != pairs_out + count(probe, 'pairs dropped'):
+    pairs_in, pairs_out = probe.counter('pairs in'), probe.counter('pairs out')
+    if pairs_in != pairs_out + probe.counter('pairs dropped'):
         problems.append(f'pairs in {pairs_in} != out {pairs_out} + dropped '
-                        f'{count(probe, "pairs dropped")}')
+                        f'{probe.counter("pairs dropped")}')
     return problems
 
 
@@ -107,11 +102,11 @@ def test_every_camera_message_is_received_or_counted_missing(ros_context, start_
             raise AssertionError(f'{error}: {unaccounted(probe, sent)}; '
                                  f'report: {probe.diagnostics}') from None
         print(f'{reliability}: {sent} sets sent; ' + '; '.join(
-            f'{topic} received {count(probe, f"received {topic}")}, estimated lost '
-            f'{count(probe, f"{topic} estimated lost (stamp gaps)")}, DDS lost '
-            f'{count(probe, f"lost before delivery {topic}")}' for topic in INPUTS)
-            + f'; pairs out {count(probe, "pairs out")}')
-        missing = sum(count(probe, f'{topic} estimated lost (stamp gaps)') for topic in INPUTS)
+            f'{topic} received {probe.counter(f"received {topic}")}, estimated lost '
+            f'{probe.counter(f"{topic} estimated lost (stamp gaps)")}, DDS lost '
+            f'{probe.counter(f"lost before delivery {topic}")}' for topic in INPUTS)
+            + f'; pairs out {probe.counter("pairs out")}')
+        missing = sum(probe.counter(f'{topic} estimated lost (stamp gaps)') for topic in INPUTS)
         assert missing > 0, (
             f'the burst of {BURST} sets lost nothing in the 5-deep queues: the test shows '
             f'nothing; report: {probe.diagnostics}')

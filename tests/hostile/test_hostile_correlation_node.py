@@ -38,10 +38,6 @@ class CorrelationTarget(HostileProbe):
         self.wait(lambda: self.node.count_publishers('matches') > 0,
                   'the matches publisher')
 
-    def counter(self, key: str) -> int:
-        value = self.diagnostic_value(key)
-        return int(value) if value is not None else 0
-
 
 @pytest.fixture
 def target(ros_context, start_ros_process):

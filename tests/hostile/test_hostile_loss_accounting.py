@@ -22,36 +22,31 @@ CORRELATION_DROPS = ('superseded', 'image_too_large', 'calibration', 'size_misma
                      'encoding', 'matcher_input', 'opencv', 'internal')
 
 
-def count(probe: HostileProbe, key: str) -> int:
-    value = probe.diagnostic_value(key)
-    return int(value) if value is not None else 0
-
-
 def unaccounted(sync: HostileProbe, correlation: HostileProbe, fuzzy: HostileProbe,
                 pairs_sent: int | None = None) -> list[str]:
     """Return the accounting identities the latest reports break (empty: all hold).
 
     `pairs_sent`: StereoPairs the test published itself (None: the sync node's `pairs out`).
     """
-    published = count(sync, 'pairs out') if pairs_sent is None else pairs_sent
-    received = count(correlation, 'pair received')
-    matched = count(correlation, 'pairs processed')
-    arrived = count(fuzzy, 'matches received')
+    published = sync.counter('pairs out') if pairs_sent is None else pairs_sent
+    received = correlation.counter('pair received')
+    matched = correlation.counter('pairs processed')
+    arrived = fuzzy.counter('matches received')
     identities = {
         'sync: pairs in = out + dropped':
-            (count(sync, 'pairs in'), count(sync, 'pairs out') + count(sync, 'pairs dropped')),
+            (sync.counter('pairs in'), sync.counter('pairs out') + sync.counter('pairs dropped')),
         'correlation: received + lost = sync out':
-            (received + count(correlation, 'pair lost (sequence gaps)')
-             + count(correlation, 'pair sent before the first received'), published),
+            (received + correlation.counter('pair lost (sequence gaps)')
+             + correlation.counter('pair sent before the first received'), published),
         'correlation: processed + dropped + waiting = received':
-            (matched + count(correlation, 'pairs waiting') + sum(
-                count(correlation, f'dropped {reason}') for reason in CORRELATION_DROPS),
+            (matched + correlation.counter('pairs waiting') + sum(
+                correlation.counter(f'dropped {reason}') for reason in CORRELATION_DROPS),
              received),
         'fuzzy: received + lost = correlation processed':
-            (arrived + count(fuzzy, 'matches lost (sequence gaps)')
-             + count(fuzzy, 'matches sent before the first received'), matched),
+            (arrived + fuzzy.counter('matches lost (sequence gaps)')
+             + fuzzy.counter('matches sent before the first received'), matched),
         'fuzzy: made + refused = received':
-            (count(fuzzy, 'decisions made') + count(fuzzy, 'decisions refused'), arrived),
+            (fuzzy.counter('decisions made') + fuzzy.counter('decisions refused'), arrived),
     }
     return [f'{name}: {left} != {right}' for name, (left, right) in identities.items()
             if left != right]
@@ -89,8 +84,8 @@ def test_every_pair_and_match_is_delivered_or_counted_lost(ros_context, start_ro
                   'the three nodes to subscribe (numba warm-up)', timeout=180.0)
         # The probe seeing the fuzzy node's subscription does not mean DDS has matched it to the
         # correlation node's writer: both ends say so in /diagnostics.
-        sync.wait(lambda: count(correlation, 'matches subscribers') >= 1
-                  and count(fuzzy, 'matches publishers') >= 1,
+        sync.wait(lambda: correlation.counter('matches subscribers') >= 1
+                  and fuzzy.counter('matches publishers') >= 1,
                   'the correlation and fuzzy nodes to be connected on matches', timeout=180.0)
         pairs_sent = None if source == 'camera_sets' else BURST + 1
 
@@ -107,18 +102,18 @@ def test_every_pair_and_match_is_delivered_or_counted_lost(ros_context, start_ro
         try:
             # Settled at the correlation node; the fuzzy node may have received nothing yet
             # (under load, matches can all be sent before DDS matched its subscription).
-            sync.wait(lambda: count(correlation, 'pairs processed') > 0
-                      and count(correlation, 'pairs waiting') == 0,
+            sync.wait(lambda: correlation.counter('pairs processed') > 0
+                      and correlation.counter('pairs waiting') == 0,
                       'the chain to work through the burst', timeout=200.0)
         except AssertionError as error:
             raise AssertionError(f'{error}: {unaccounted(sync, correlation, fuzzy)}; '
                                  f'{correlation.diagnostics}; {fuzzy.diagnostics}') from None
         # One last message, slowly: it carries the next sequence numbers, so a loss at the end
         # of the burst shows as a gap before it.
-        arrived_before = count(fuzzy, 'matches received')
+        arrived_before = fuzzy.counter('matches received')
         send(BURST + 1)
         try:
-            sync.wait(lambda: count(fuzzy, 'matches received') > arrived_before,
+            sync.wait(lambda: fuzzy.counter('matches received') > arrived_before,
                       'the last message to reach the fuzzy node', timeout=120.0)
         except AssertionError as error:
             raise AssertionError(f'{error}: {unaccounted(sync, correlation, fuzzy, pairs_sent)}'
@@ -130,7 +125,7 @@ def test_every_pair_and_match_is_delivered_or_counted_lost(ros_context, start_ro
         except AssertionError as error:
             raise AssertionError(
                 f'{error}: {unaccounted(sync, correlation, fuzzy, pairs_sent)}') from None
-        assert count(correlation, 'pairs waiting') == 0
+        assert correlation.counter('pairs waiting') == 0
         for probe in probes:
             probe.assert_alive()
     finally:

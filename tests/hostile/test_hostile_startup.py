@@ -54,12 +54,7 @@ def test_a_hostile_file_at_start_ends_the_node_with_one_line(start_ros_process, 
     for parameter in parameters:
         arguments += ['-p', parameter]
     process = start_ros_process('stereo_fuzzy_perception', executable, *arguments)
-    try:
-        process.process.wait(TIMEOUT)
-    except Exception:
-        pytest.fail(f'{executable} {parameters} still runs after {TIMEOUT} s:\n'
-                    f'{process.output()}')
-    output = process.output()
+    output = process.wait_for_exit(TIMEOUT)
     assert process.process.returncode != 0, f'{executable} exited 0 with {parameters}'
     assert 'Traceback' not in output, output
     fatal = [line for line in output.splitlines() if 'FATAL' in line]

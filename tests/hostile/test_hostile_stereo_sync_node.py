@@ -49,10 +49,6 @@ class SyncTarget(HostileProbe):
             self.publishers[topic].publish(inputs[topic])
         self.wait_diagnostic('received right/camera_info', before + 1)
 
-    def counter(self, key: str) -> int:
-        value = self.diagnostic_value(key)
-        return int(value) if value is not None else 0
-
 
 @pytest.fixture
 def target(ros_context, start_ros_process):

@@ -5,7 +5,7 @@ Shared by tests/test_correlation_node.py and tests/test_correlation_area_trackin
 
 from __future__ import annotations
 
-import cv2
+import hostile_messages
 import numpy as np
 from ros_waiting import wait_until
 
@@ -27,11 +27,7 @@ def camera(width: int = WIDTH, height: int = HEIGHT, tx: float = -FOCAL * BASELI
 
 def textured_pair(width: int = WIDTH, height: int = HEIGHT) -> tuple[np.ndarray, np.ndarray]:
     """A rectified pair with a constant disparity SHIFT: left x matches right x - SHIFT."""
-    rng = np.random.default_rng(0)
-    scene = cv2.GaussianBlur(rng.uniform(0, 255, (height, width + SHIFT)).astype(np.float32),
-                             (0, 0), 1.2)
-    scene = np.clip(128 + 3 * (scene - scene.mean()), 0, 255).astype(np.uint8)
-    return scene[:, :width].copy(), scene[:, SHIFT:SHIFT + width].copy()
+    return hostile_messages.textured_pair(width, height, SHIFT)
 
 
 def stereo_pair(stamp_sec: int = 1, encoding: str = 'mono8', right_width: int = WIDTH,

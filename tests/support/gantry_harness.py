@@ -7,10 +7,12 @@ client node share one executor that the test spins while it waits on conditions.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import pytest
 from cartesian_3p_driver.grbl_controller import ControllerSettings, FaultInjection, GrblController
 from cartesian_3p_driver.grbl_simulator import GrblSimulator, SimulatorOptions
 from ros_waiting import wait_until
@@ -181,3 +183,21 @@ class GantryClient:
 def at(point: Any, x: float, y: float, z: float, tolerance: float = 1e-4) -> bool:
     """True when a geometry_msgs Point is within `tolerance` [m] of (x, y, z)."""
     return math.dist((point.x, point.y, point.z), (x, y, z)) <= tolerance
+
+
+@pytest.fixture
+def gantry(ros_context: Any, tmp_path: Path) -> Iterator[Any]:
+    """Factory: start a simulator and a driver (with parameter overrides) for one test."""
+    started: list[tuple[GrblSimulator, GantryClient]] = []
+
+    def start(overrides: dict[str, Any] | None = None, **simulator_options: Any
+              ) -> tuple[GrblSimulator, GantryClient]:
+        simulator = start_simulator(tmp_path, **simulator_options)
+        client = GantryClient(ros_context, tmp_path, overrides or {})
+        started.append((simulator, client))
+        return simulator, client
+
+    yield start
+    for simulator, client in started:
+        client.close()
+        simulator.stop()

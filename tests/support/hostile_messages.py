@@ -48,15 +48,16 @@ def spoiled_right_cameras() -> list[tuple[str, Any]]:
     ]
 
 
-def textured_pair(width: int = WIDTH, height: int = HEIGHT) -> tuple[np.ndarray, np.ndarray]:
-    """A rectified pair with constant disparity SHIFT."""
+def textured_pair(width: int = WIDTH, height: int = HEIGHT, shift: int = SHIFT
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """A rectified pair with a constant disparity: left x matches right x - shift."""
     import cv2
 
     rng = np.random.default_rng(0)
-    scene = cv2.GaussianBlur(rng.uniform(0, 255, (height, width + SHIFT)).astype(np.float32),
+    scene = cv2.GaussianBlur(rng.uniform(0, 255, (height, width + shift)).astype(np.float32),
                              (0, 0), 1.2)
     scene = np.clip(128 + 3 * (scene - scene.mean()), 0, 255).astype(np.uint8)
-    return scene[:, :width].copy(), scene[:, SHIFT:SHIFT + width].copy()
+    return scene[:, :width].copy(), scene[:, shift:shift + width].copy()
 
 
 def header(stamp_sec: int, frame_id: str = 'left_camera_optical_frame') -> Any:

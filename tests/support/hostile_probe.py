@@ -95,6 +95,11 @@ class HostileProbe:
             f'{self.node_name} died:\n{self.process.output()[-3000:]}')
         self.get_parameter('use_sim_time')
 
+    def counter(self, key: str) -> int:
+        """Return the latest /diagnostics count of `key` from the node (0 before any)."""
+        value = self.diagnostic_value(key)
+        return int(value) if value is not None else 0
+
     def diagnostic_value(self, key: str) -> str | None:
         """Return the latest /diagnostics value of `key` from the node, or None."""
         for values in self.diagnostics.values():

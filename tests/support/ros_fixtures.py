@@ -60,6 +60,14 @@ class RosProcess:
         """Return everything the process printed so far."""
         return self.log_path.read_text(errors='replace')
 
+    def wait_for_exit(self, timeout: float) -> str:
+        """Wait for the process to end on its own; return its output (fail if it still runs)."""
+        try:
+            self.process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f'{self.name} still runs after {timeout} s:\n{self.output()}')
+        return self.output()
+
     def interrupt(self, timeout: float = 15.0) -> int:
         """Send SIGINT as Ctrl-C would and return the exit code."""
         if self.process.poll() is None:
