@@ -23,6 +23,7 @@ import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -94,6 +95,45 @@ def missing_links(node: object, links: tuple[tuple[str, str, str], ...] = CHAIN_
         if publisher not in publishers or subscriber not in subscribers:
             missing.append(f'{publisher} -> {topic} -> {subscriber}')
     return missing
+
+
+# (node, diagnostics key, topic, 'subscribers' = its writer's matched readers, to equal the
+# graph's subscriptions of the topic; 'publishers' = its reader's matched writers, at least one)
+MATCHED_ENDPOINTS = (
+    ('stereo_sync_node', f'{PAIR} subscribers', in_namespace(STEREO_NAMESPACE, PAIR)),
+    ('correlation_node', f'{PAIR} publishers', in_namespace(STEREO_NAMESPACE, PAIR)),
+    ('correlation_node', f'{MATCHES} subscribers', in_namespace(STEREO_NAMESPACE, MATCHES)),
+    ('fuzzy_best_point_node', f'{MATCHES} publishers', in_namespace(STEREO_NAMESPACE, MATCHES)),
+    ('fuzzy_best_point_node', f'{BEST_POINT} subscribers', in_namespace('', BEST_POINT)),
+)
+
+
+class LatestDiagnostics:
+    """The latest /diagnostics values of each node, by node name (hardware_id)."""
+
+    def __init__(self, node: Any) -> None:
+        from diagnostic_msgs.msg import DiagnosticArray
+        from stereo_fuzzy_parameters.qos import DIAGNOSTICS
+
+        self.values: dict[str, dict[str, str]] = {}
+        node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
+                                 DIAGNOSTICS)
+
+    def _on_diagnostics(self, array: Any) -> None:
+        for status in array.status:
+            self.values.setdefault(status.hardware_id, {}).update(
+                {item.key: item.value for item in status.values})
+
+
+def unmatched_links(node: Any, diagnostics: LatestDiagnostics) -> list[str]:
+    """Return the MATCHED_ENDPOINTS whose node does not report them matched yet, in words."""
+    unmatched = []
+    for name, key, topic in MATCHED_ENDPOINTS:
+        reported = diagnostics.values.get(name, {}).get(key)
+        wanted = node.count_subscribers(topic) if key.endswith('subscribers') else 1
+        if reported is None or int(reported) < wanted:
+            unmatched.append(f'{name}: {key} {reported} of {wanted}')
+    return unmatched
 
 
 @dataclass
@@ -229,6 +269,7 @@ class DemoRun:
                      self.group)
             self.lines_sent_at_start = monitor.latest_gantry_state.lines_sent
             self.start_recorder()
+            diagnostics = LatestDiagnostics(node)
             # correlation_node and fuzzy_best_point_node create their endpoints only once their
             # numba kernels are compiled (cold-start times: the README's benchmark table). A
             # scene played before every link of the chain exists is lost at the first missing
@@ -240,6 +281,12 @@ class DemoRun:
             except TimeoutError as error:
                 missing = missing_links(node, CHAIN_LINKS + RECORDER_LINKS)
                 raise TimeoutError(f'{error}; missing: {", ".join(missing)}') from None
+            # On the graph is not yet connected: DDS matches each writer to each reader a little
+            # later, and a message published before that is lost to that reader. The nodes say
+            # in /diagnostics how many readers their writers reach and writers their readers
+            # hear; play once those agree with the graph.
+            wait_for(lambda: not unmatched_links(node, diagnostics), 60.0,
+                     'DDS to connect every link of the chain', spin, self.group)
             self._progress(f'playing {self.bag.name}')
             self.start_player()
             player = self.group.processes[-1]

@@ -23,6 +23,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import PointCloud2
 from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 from stereo_msgs.msg import DisparityImage
@@ -90,6 +91,8 @@ class CorrelationNode(Node):
                                    self.settings.input_reliability))
         self.matches_publisher = self.create_publisher(StereoMatches, topic_names.MATCHES,
                                                        qos.RESULTS)
+        # Created once the matching kernel is ready (a pair before it could not be matched).
+        self.pair_subscription: Subscription | None = None
         self.points_publisher = self.create_publisher(PointCloud2, topic_names.POINTS, qos.RESULTS)
         self.disparity_publisher = self.create_publisher(DisparityImage, topic_names.DISPARITY,
                                                          qos.RESULTS)
@@ -193,10 +196,10 @@ class CorrelationNode(Node):
         # Subscribe only once the matcher has run (its kernel loaded, its working memory
         # faulted in), so that upstream publishers (or `bag play --wait-for-subscribers`) can
         # see on the graph when it is ready.
-        subscription = self.create_subscription(StereoPair, topic_names.PAIR, self._on_pair,
-                                                self._input_qos)
+        self.pair_subscription = self.create_subscription(StereoPair, topic_names.PAIR,
+                                                          self._on_pair, self._input_qos)
         self.get_logger().info(f'matching kernel ready in {seconds:.2f} s; subscribed to '
-                               f'{subscription.topic_name}')
+                               f'{self.pair_subscription.topic_name}')
         last_start = -float('inf')
         while True:
             with self._condition:
@@ -339,9 +342,12 @@ class CorrelationNode(Node):
                    for name, ms in self.last_timings_ms.items()},
                 'mean processing time [ms]': round(self._total_ms / self.processed, 2)
                 if self.processed else 0.0,
-                # Readers DDS has matched to the matches writer: what is published reaches them.
+                # Readers DDS has matched to the matches writer, and writers to the pair
+                # reader (none before the kernel is ready): what is published reaches them.
                 f'{topic_names.MATCHES} subscribers':
                     self.matches_publisher.get_subscription_count(),
+                f'{topic_names.PAIR} publishers': (self.pair_subscription.get_publisher_count()
+                                                   if self.pair_subscription else 0),
             }
             last_error = self.last_error
             errors = sum(count for reason, count in self.dropped.items()

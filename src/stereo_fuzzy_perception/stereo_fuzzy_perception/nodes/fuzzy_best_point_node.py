@@ -366,6 +366,8 @@ class FuzzyBestPointNode(Node):
         # discovery has not connected the two nodes (nothing can arrive, nothing counts as lost).
         values.append((f'{topic_names.MATCHES} publishers',
                        self.matches_subscription.get_publisher_count()))
+        values.append((f'{topic_names.BEST_POINT} subscribers',
+                       self.best_point_publisher.get_subscription_count()))
         status.values = [KeyValue(key=key, value=str(value)) for key, value in values]
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()

@@ -320,6 +320,9 @@ class StereoSyncNode(Node):
         ]
         values += [(f'dropped {reason}', count) for reason, count in report['dropped'].items()]
         values.append(('slop [s]', settings.slop_s))
+        # Readers DDS has matched to the pair writer: what is published reaches them.
+        values.append((f'{topic_names.PAIR} subscribers',
+                       self.pair_publisher.get_subscription_count()))
         values += [(f'received {topic}', report['received'].get(topic, 0))
                    for topic in INPUT_TOPICS]
         values += [(f'unpaired {topic}', report['unpaired'].get(topic, 0))
