@@ -62,6 +62,10 @@ def is_already_rectified(camera: CameraCalibration) -> bool:
             and np.allclose(camera.K, np.asarray(camera.P)[:3, :3]))
 
 
+Block = tuple[int, int, int, int]
+"""(first row, stop row, first column, stop column) of an image [px]."""
+
+
 @dataclass(frozen=True)
 class RectificationMaps:
     """cv2.remap maps of one camera (None when the image is already rectified)."""
@@ -76,24 +80,57 @@ class RectificationMaps:
         return cv2.remap(image, self.map_x, self.map_y, cv2.INTER_LINEAR,
                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
+    def apply_part(self, image: np.ndarray, block: Block, out: np.ndarray | None,
+                   done: Block | None) -> tuple[np.ndarray, Block | None]:
+        """Rectify `block` of `image` into `out` (made when None or of another shape).
 
-    def apply_rows(self, image: np.ndarray, first: int, stop: int,
-                   out: np.ndarray | None) -> np.ndarray:
-        """Rectify rows first..stop-1 of `image` into `out` (made when None or of another shape).
+        Args:
+            image: The raw image.
+            block: (first row, stop row, first column, stop column) to rectify [px].
+            out: The rectified image to write into, or None.
+            done: A block of `out` that already holds this image rectified, or None.
 
         Returns:
-            `out` (or `image` itself when already rectified): a full-size image of which only
-            those rows are this image's; the others hold whatever `out` held.
+            `out` (or `image` itself when already rectified), a full-size image of which only
+            `block` (and `done`) are this image's, and the block that now holds it.
         """
         if self.map_x is None or self.map_y is None:
-            return image
+            return image, None
         shape = self.map_x.shape[:2] + image.shape[2:]
         if out is None or out.shape != shape or out.dtype != image.dtype:
-            out = np.zeros(shape, image.dtype)
-        # A block of whole rows of a C-contiguous array is contiguous: remap writes into it.
-        cv2.remap(image, self.map_x[first:stop], self.map_y[first:stop], cv2.INTER_LINEAR,
-                  dst=out[first:stop], borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        return out
+            out, done = np.zeros(shape, image.dtype), None
+        for first, stop, start, end in missing_blocks(done, block):
+            # remap reads the maps' and writes the output's views in place (row strides kept)
+            cv2.remap(image, self.map_x[first:stop, start:end], self.map_y[first:stop, start:end],
+                      cv2.INTER_LINEAR, dst=out[first:stop, start:end],
+                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        return out, grown_block(done, block)
+
+
+def missing_blocks(done: Block | None, wanted: Block) -> list[Block]:
+    """Return the blocks of `wanted` outside `done`: all of it unless one holds the other."""
+    first, stop, start, end = wanted
+    if first >= stop or start >= end:
+        return []
+    if done is None:
+        return [wanted]
+    done_first, done_stop, done_start, done_end = done
+    if (done_first <= first and stop <= done_stop and done_start <= start
+            and end <= done_end):
+        return []
+    if not (first <= done_first and done_stop <= stop and start <= done_start
+            and done_end <= end):
+        return [wanted]
+    parts = [(first, done_first, start, end), (done_stop, stop, start, end),
+             (done_first, done_stop, start, done_start), (done_first, done_stop, done_end, end)]
+    return [part for part in parts if part[0] < part[1] and part[2] < part[3]]
+
+
+def grown_block(done: Block | None, wanted: Block) -> Block:
+    """Return the block that holds the image once `missing_blocks(done, wanted)` are done."""
+    if done is not None and not missing_blocks(done, wanted):
+        return done
+    return wanted
 
 
 def rectification_maps(camera: CameraCalibration) -> RectificationMaps:
@@ -181,19 +218,38 @@ class StereoRectifier:
         (left_maps, right_maps), rectified = self._maps_for(calibration)
         return left_maps.apply(left), right_maps.apply(right), rectified
 
-    def rectify_rows(self, left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
-                     first: int, stop: int
+    def rectify_part(self, left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
+                     rows: tuple[int, int], columns: tuple[tuple[int, int], tuple[int, int]],
+                     continued: bool = False
                      ) -> tuple[np.ndarray, np.ndarray, StereoCalibration]:
-        """Rectify only rows first..stop-1 of a raw pair (what a region of interest reads).
+        """Rectify only some rows and columns of a raw pair (what a match reads, pixels_read).
 
         The rectified images are buffers this rectifier keeps for the next call (in the
-        calling thread): rows outside first..stop-1 hold an earlier pair's pixels, and the
-        images are overwritten by the next call. Otherwise as `rectify`.
+        calling thread): pixels outside the block hold an earlier pair's, and the images are
+        overwritten by the next call. Otherwise as `rectify`.
+
+        Args:
+            left: Raw left image.
+            right: Raw right image.
+            calibration: The pair's calibration.
+            rows: (start, stop) of the rows to rectify in both images [px].
+            columns: (start, stop) of the columns to rectify in the left and the right image.
+            continued: The previous call of this thread rectified part of the same pair (the
+                same arrays, unchanged since): only what it did not is rectified now.
         """
         self.check_sizes(left, right, calibration)
-        (left_maps, right_maps), rectified = self._maps_for(calibration)
-        buffers = getattr(self._row_buffers, 'images', (None, None))
-        images = (left_maps.apply_rows(left, first, stop, buffers[0]),
-                  right_maps.apply_rows(right, first, stop, buffers[1]))
-        self._row_buffers.images = images
-        return images[0], images[1], rectified
+        maps, rectified = self._maps_for(calibration)
+        state = self._row_buffers
+        previous = getattr(state, 'source', None)
+        same = (continued and previous is not None and previous[0] is left
+                and previous[1] is right and previous[2] is maps)
+        images = getattr(state, 'images', (None, None))
+        done = getattr(state, 'done', (None, None)) if same else (None, None)
+        results = [side_maps.apply_part(image, (*rows, *side_columns), buffer, side_done)
+                   for side_maps, image, side_columns, buffer, side_done
+                   in zip(maps, (left, right), columns, images, done, strict=True)]
+        state.images = (results[0][0], results[1][0])
+        state.done = (results[0][1], results[1][1])
+        # the raw arrays are held, so that no later pair's arrays can be taken for them
+        state.source = (left, right, maps)
+        return results[0][0], results[1][0], rectified

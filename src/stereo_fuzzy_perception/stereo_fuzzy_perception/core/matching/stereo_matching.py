@@ -17,7 +17,12 @@ from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 from stereo_fuzzy_perception.core.matching.area_search import SearchRegion, region_problem
 from stereo_fuzzy_perception.core.matching.rectification import StereoRectifier
 from stereo_fuzzy_perception.core.matching.triangulation import triangulate
-from stereo_fuzzy_perception.core.matching.window_matcher import DisparityMap, MatcherConfig, match
+from stereo_fuzzy_perception.core.matching.window_matcher import (
+    DisparityMap,
+    MatcherConfig,
+    match,
+    pixels_read,
+)
 
 
 @dataclass(frozen=True)
@@ -69,10 +74,11 @@ class StereoMatchingPipeline:
             full_disparity: Decide every row of the disparity map. Otherwise only the rows the
                 point stride keeps are decided (the others are SKIPPED_ROW), which saves most
                 of the matching of the rows in between; the points are the same either way.
-            region: Match only in this region (area_search.search_region): only its rows are
-                rectified, only its disparities searched. When the result fails the region's
-                check (area_search.region_problem), the pair is matched again on the whole
-                image and `region_problem` says why.
+            region: Match only in this region (area_search.search_region): only the pixels its
+                windows read are rectified, only its disparities searched. When the result
+                fails the region's check (area_search.region_problem), the pair is matched
+                again on the whole image (rectifying only what the region did not) and
+                `region_problem` says why.
 
         Returns:
             The rectified calibration, the disparity map and the triangulated points.
@@ -91,11 +97,8 @@ class StereoMatchingPipeline:
             narrowed = dataclasses.replace(config, roi=region.roi,
                                            min_disparity=region.min_disparity,
                                            disparity_range=region.disparity_range)
-            y, height = region.roi[1], region.roi[3]
-            radius = config.window_size // 2
-            left_rect, right_rect, rectified = self.rectifier.rectify_rows(
-                left, right, calibration, max(0, y - radius),
-                min(calibration.left.height, y + height + radius))
+            left_rect, right_rect, rectified = self._rectify(left, right, calibration,
+                                                             narrowed)
             rectified_at = time.perf_counter()
             disparity_map = match(left_rect, right_rect, narrowed, row_step=row_step,
                                   threads=self.threads)
@@ -106,13 +109,33 @@ class StereoMatchingPipeline:
                                     timings, region)
             timings['region'] = 1e3 * (time.perf_counter() - start)
             start = time.perf_counter()
-        left_rect, right_rect, rectified = self.rectifier.rectify(left, right, calibration)
+        # after a region, only what its rectification did not cover
+        left_rect, right_rect, rectified = self._rectify(left, right, calibration, config,
+                                                         continued=region is not None)
         rectified_at = time.perf_counter()
         disparity_map = match(left_rect, right_rect, config, row_step=row_step,
                               threads=self.threads)
         matched_at = time.perf_counter()
         return self._finish(rectified, disparity_map, start, rectified_at, matched_at, timings,
                             None, problem)
+
+    def _rectify(self, left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
+                 config: MatcherConfig, continued: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, StereoCalibration]:
+        """Rectify the pixels a match with `config` reads (window_matcher.pixels_read).
+
+        Only rows are left out unless both images are 8-bit, for which the matcher's sums are
+        exact whatever the columns it does not read hold.
+        """
+        self.rectifier.check_sizes(left, right, calibration)  # before the region's bounds
+        read = pixels_read(config, calibration.left.width, calibration.left.height)
+        if left.dtype == np.uint8 and right.dtype == np.uint8:
+            columns = (read.left_columns, read.right_columns)
+        else:
+            whole = (0, calibration.left.width)
+            columns = (whole, whole)
+        return self.rectifier.rectify_part(left, right, calibration, read.rows, columns,
+                                           continued)
 
     def _finish(self, rectified: StereoCalibration, disparity_map: DisparityMap, start: float,
                 rectified_at: float, matched_at: float, timings: dict[str, float],

@@ -57,6 +57,7 @@ import os
 import sys
 import threading
 import time
+from typing import NamedTuple
 
 import numpy as np
 
@@ -85,8 +86,8 @@ except ImportError as error:  # pragma: no cover - a checkout that was never bui
 # preprocessing.py; they are part of this module's interface, which most callers import.
 __all__ = ['MAX_DISPARITY_RANGE', 'MAX_WINDOW_SIZE', 'METHODS', 'PREPROCESS_MODES',
            'DisparityMap', 'MatchStatus', 'MatcherConfig', 'MatcherConfigError',
-           'MatcherInputError', 'default_threads', 'effective_roi', 'match',
-           'preprocess_image', 'warm_up']
+           'MatcherInputError', 'PixelsRead', 'default_threads', 'effective_roi', 'match',
+           'pixels_read', 'preprocess_image', 'warm_up']
 
 # Windows whose standard deviation is below this [grey levels] are flat whatever the threshold
 # (the kernel's constant).
@@ -126,6 +127,41 @@ def effective_roi(config: MatcherConfig, width: int, height: int) -> tuple[int, 
         raise MatcherInputError(
             f'roi {config.roi} (x, y, width, height) lies outside the {width}x{height} image')
     return x, y, x_end - x, y_end - y
+
+
+class PixelsRead(NamedTuple):
+    """The rows and columns of each image a match reads, each as (start, stop) [px]."""
+
+    rows: tuple[int, int]
+    left_columns: tuple[int, int]
+    right_columns: tuple[int, int]
+
+
+def pixels_read(config: MatcherConfig, width: int, height: int) -> PixelsRead:
+    """Return the pixels of a `width` x `height` pair that `match` reads with `config`.
+
+    The rows are the region's, widened by the window's radius. The columns are those of the
+    windows the kernel correlates: the region's, widened by the left-right check's reach (the
+    right pixels the region's candidates meet are decided over every left pixel that meets
+    them) and by the radius; in the right image, shifted by the searched disparities. What an
+    8-bit pair holds outside them does not change the result: the kernel's sums over its
+    pixels are sums of integers, exact whatever they add and take away. Preprocessing (Sobel,
+    Otsu) and other pixel types read whole rows.
+
+    Raises:
+        MatcherInputError: When the configured region lies outside the image.
+    """
+    x, y, roi_width, roi_height = effective_roi(config, width, height)
+    radius = config.window_size // 2
+    rows = (max(0, y - radius), min(height, y + roi_height + radius))
+    reach = config.disparity_range - 1 if config.lr_check_max_diff >= 0 else 0
+    x_begin, x_end = max(radius, x - reach), min(width - radius, x + roi_width + reach)
+    if config.preprocess != 'none' or x_begin >= x_end:
+        return PixelsRead(rows, (0, width), (0, width))
+    left = (max(0, x_begin - radius), min(width, x_end + radius))
+    right_start = min(width, max(0, x_begin - radius - config.max_disparity))
+    right = (right_start, max(right_start, min(width, x_end + radius - config.min_disparity)))
+    return PixelsRead(rows, left, right)
 
 
 # --- public API -------------------------------------------------------------------------------
