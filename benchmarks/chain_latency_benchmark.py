@@ -14,7 +14,9 @@ stamp per pair = its publish time) from a few rendered scenes on a timer, each s
 tracking of the previous decision's area; 30 at 30 Hz: an object that stays a second, as a live
 rig sees it). A second node subscribes best_point, best_point/decision and /diagnostics.
 --no-tracking turns correlation_node's tracking off (roi.track false: every pair matched on the
-whole image); where pairs were matched is reported from its /diagnostics.
+whole image), --decision-wait-s sets how long the pair after a failed region waits for that
+pair's decision (roi.decision_wait_s; 0 = matched on the whole image at once); where pairs were
+matched is reported from its /diagnostics.
 
 Latency = arrival time in this process - pair header stamp (both CLOCK_REALTIME). A decision
 (best_point/decision) is published for every pair the correlation node processes; a best point
@@ -469,11 +471,14 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
 
 # --- main ---------------------------------------------------------------------------------------
 
-def node_arguments(executable: str, tracking: bool = True) -> list[str]:
+def node_arguments(executable: str, tracking: bool = True,
+                   decision_wait_s: float | None = None) -> list[str]:
     """Return the --ros-args of a node: the demo parameter file, or the fallback overrides."""
     overrides: tuple[str, ...] = LIVE_OVERRIDES.get(executable, ())
     if executable == 'correlation_node' and not tracking:
         overrides = (*overrides, 'roi.track:=false')
+    if executable == 'correlation_node' and decision_wait_s is not None:
+        overrides = (*overrides, f'roi.decision_wait_s:={decision_wait_s!r}')
     if DEMO_PARAMS.exists():
         files = ['--params-file', str(DEMO_PARAMS)]
     else:
@@ -500,7 +505,8 @@ def run(args: argparse.Namespace) -> list[Measurement]:
             publisher = PairPublisher(context, pairs, args.pairs_per_scene)
             for executable in NODES:
                 group.start_node(PACKAGE, executable,
-                                 *node_arguments(executable, not args.no_tracking))
+                                 *node_arguments(executable, not args.no_tracking,
+                                                 args.decision_wait_s))
             wait_for(lambda: publisher.matched() and monitor.matched(), 60.0,
                      "the chain's subscriptions and publishers to match", monitor.spin, group)
             progress('publishing until the first decision (kernels warm)')
@@ -540,6 +546,8 @@ def main() -> None:
                         help='pairs published of each scene before the next one')
     parser.add_argument('--no-tracking', action='store_true',
                         help="turn correlation_node's tracking of the decided area off")
+    parser.add_argument('--decision-wait-s', type=float, metavar='S',
+                        help="correlation_node's roi.decision_wait_s (default: the node's)")
     parser.add_argument('--log-dir', help="where the nodes' logs go (default: a temp folder)")
     parser.add_argument('--latencies', metavar='CSV',
                         help='also write every decided pair: rate, index, decision latency [ms]')
@@ -552,6 +560,8 @@ def main() -> None:
               else 'node defaults + correlation_node min_disparity 32, disparity_range 64')
     params += (f', {args.pairs_per_scene} pairs per scene, tracking '
                + ('off' if args.no_tracking else 'on'))
+    if args.decision_wait_s is not None:
+        params += f', roi.decision_wait_s {args.decision_wait_s:g}'
     print_tables(results, params, machine)
     if args.latencies:
         with open(args.latencies, 'w', encoding='utf-8') as output:

@@ -168,6 +168,24 @@ def test_an_object_that_left_its_region_is_matched_on_the_whole_image(tracking):
     assert h.latest_values()['pairs matched whole: object_lost'] == '1'
 
 
+def test_the_pair_after_a_failed_region_is_matched_in_the_area_its_decision_found(tracking):
+    h = tracking(**{'roi.max_age_s': 5.0})  # pairs 1 s apart
+    h.decide(block_decision(h.node, stamp_sec=2))
+    h.publish_and_wait_processed(stereo_pair(stamp_sec=2))  # the block left: whole image
+    assert h.node.searched['object_lost'] == 1, dict(h.node.searched)
+    h.decide(block_decision(h.node, stamp_sec=2))  # that pair's decision finds it again
+    h.publish_and_wait_processed(block_pair(stamp_sec=3))
+    assert h.node.decision_waits == {'arrived': 1, 'timed out': 0}
+    assert h.node.searched['area'] == 1, dict(h.node.searched)
+    h.node.tracker.region_failed('object_lost', 3.0)  # no decision on it will come
+    h.publish_and_wait_processed(block_pair(stamp_sec=4))
+    assert h.node.decision_waits == {'arrived': 1, 'timed out': 1}
+    assert h.node.searched['no_area'] == 1, dict(h.node.searched)
+    wait_until(lambda: h.diagnostics and h.latest_values().get(
+        'decisions waited for after a failed region: timed out') == '1', TIMEOUT,
+        'diagnostics with the waits', h.executor)
+
+
 def test_a_decision_placed_with_another_camera_pose_is_not_tracked(tracking):
     h = tracking()
     h.publish_and_wait_processed(block_pair(stamp_sec=1))  # the node learns its pose

@@ -1,5 +1,7 @@
 """The tracked correlation area: its search region, the region's check and when it is used."""
 
+import threading
+
 import numpy as np
 import pytest
 from grid_scenes import Box, grid_matches
@@ -180,3 +182,33 @@ def test_an_area_with_unusable_values_is_not_tracked():
     _, left, right = grid_matches(rig, None, 0.0, 8)
     assert tracker.plan(0.0, StereoCalibration(left, right), rig.world_from_left_camera(),
                         FULL_RANGE).reason == NO_AREA
+
+
+def test_after_a_failed_region_the_next_plan_waits_once_for_that_pairs_decision():
+    rig = RIGS[0]
+    _, left, right = grid_matches(rig, None, 0.0, 8)
+    calibration = StereoCalibration(left, right)
+    pose = rig.world_from_left_camera()
+    tracker = AreaTracker(TrackingConfig(decision_wait_s=60.0))
+    assert tracker.wait_for_decision() is None  # nothing failed: no wait
+    tracker.region_failed(OBJECT_LOST, stamp_s=2.0)
+    # the decision on pair 2.0 (matched whole) arrives while the next pair waits for it
+    decider = threading.Thread(target=tracker.observe, args=(box_area(2.0),))
+    decider.start()
+    assert tracker.wait_for_decision() is True
+    decider.join()
+    assert tracker.plan(2.1, calibration, pose, FULL_RANGE).region is not None
+    assert tracker.wait_for_decision() is None  # waited once
+
+    tracker.config = TrackingConfig(decision_wait_s=0.01)
+    tracker.region_failed(OBJECT_LOST, stamp_s=3.0)
+    tracker.observe(None, stamp_s=2.5)  # an older pair's decision is not the one awaited
+    assert tracker.wait_for_decision() is False
+    assert tracker.plan(3.1, calibration, pose, FULL_RANGE).reason == NO_AREA
+    tracker.region_failed(OBJECT_LOST, stamp_s=4.0)
+    tracker.observe(None, stamp_s=4.0)  # it found nothing: it arrived, the image is searched
+    assert tracker.wait_for_decision() is True
+    assert tracker.plan(4.1, calibration, pose, FULL_RANGE).reason == NO_AREA
+    tracker.config = TrackingConfig(decision_wait_s=0.0)
+    tracker.region_failed(OBJECT_LOST, stamp_s=5.0)
+    assert tracker.wait_for_decision() is None  # waiting turned off

@@ -83,6 +83,8 @@ class CorrelationNode(Node):
         self._pose: tuple[StereoCalibration, np.ndarray | None] | None = None
         self.searched: Counter[str] = Counter(dict.fromkeys(
             ('area', *FULL_FRAME_REASONS, *REGION_PROBLEMS, POSE_MISMATCH), 0))
+        # After a failed region, the next pair waits for that pair's decision (roi.*)
+        self.decision_waits: Counter[str] = Counter({'arrived': 0, 'timed out': 0})
         # disparity_range 0: the range derived for the last calibration seen
         self._derived_for: StereoCalibration | None = None
         input_qos = QoSProfile(depth=qos.RESULTS.depth, history=qos.RESULTS.history,
@@ -168,7 +170,7 @@ class CorrelationNode(Node):
                         "a decision places its best point elsewhere than this node's camera "
                         'pose (rig_pose_file / rig.*) does: not tracking its area (give both '
                         'nodes the same pose)', throttle_duration_sec=60.0)
-            self.tracker.observe(area)
+            self.tracker.observe(area, stamp_seconds(msg.header.stamp))
         except Exception as error:  # a bad decision must not stop the node: search everywhere
             self.tracker.observe(None)
             self.get_logger().error(f'decision not tracked: {error!r}',
@@ -185,6 +187,10 @@ class CorrelationNode(Node):
             except RigPoseError:
                 pose = None
             known = self._pose = (calibration, pose)
+        waited = self.tracker.wait_for_decision()
+        if waited is not None:
+            with self._condition:
+                self.decision_waits['arrived' if waited else 'timed out'] += 1
         config = self.pipeline.config
         return self.tracker.plan(stamp_seconds(pair.header.stamp), calibration, known[1],
                                  (config.min_disparity, config.disparity_range))
@@ -240,7 +246,8 @@ class CorrelationNode(Node):
                 full_disparity=self.disparity_publisher.get_subscription_count() > 0,
                 region=plan.region)
             if result.region_problem:
-                self.tracker.region_failed(result.region_problem)
+                self.tracker.region_failed(result.region_problem,
+                                           stamp_seconds(pair.header.stamp))
         except ImageSizeError as error:
             self._drop('image_too_large', str(error))
             return
@@ -335,6 +342,8 @@ class CorrelationNode(Node):
                 **{f'pairs matched whole: {reason}': self.searched[reason]
                    for reason in (*FULL_FRAME_REASONS, *REGION_PROBLEMS)},
                 f'decisions not tracked: {POSE_MISMATCH}': self.searched[POSE_MISMATCH],
+                **{f'decisions waited for after a failed region: {outcome}': count
+                   for outcome, count in self.decision_waits.items()},
                 **self.pair_sequence.report(topic_names.PAIR),
                 **{f'dropped {reason}': count for reason, count in self.dropped.items()},
                 'last valid points': self.last_points,

@@ -68,13 +68,18 @@ class RoiSettings:
         "object's extents [-] (its motion between decisions)", 0.0, 10.0)
     margin_m: float = parameter(
         _TRACKING.margin_m, 'Smallest margin of the tracked region on each side [m]', 0.0, 1.0)
+    decision_wait_s: float = parameter(
+        _TRACKING.decision_wait_s, 'After a pair whose region failed its check (matched again on '
+        "the whole image), the next pair waits this long at most for that pair's decision, to "
+        'be matched in its area rather than on the whole image [s]; 0 does not wait', 0.0, 1.0)
 
     def tracking_config(self) -> TrackingConfig:
         """Return the tracking settings (tracking only while the area is the whole image)."""
         return TrackingConfig(
             enabled=self.track and (self.width == 0 or self.height == 0),
             full_frame_every=self.full_frame_every, max_age_s=self.max_age_s,
-            margin_object_sizes=self.margin_object_sizes, margin_m=self.margin_m)
+            margin_object_sizes=self.margin_object_sizes, margin_m=self.margin_m,
+            decision_wait_s=self.decision_wait_s)
 
 
 @dataclass(frozen=True)

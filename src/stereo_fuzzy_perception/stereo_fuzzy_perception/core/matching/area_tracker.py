@@ -5,13 +5,18 @@ last one did not), when the newest area is older than `max_age_s` (pair stamps, 
 bag behaves as it did live), every `full_frame_every`-th pair, and when the area gives no region
 (`AreaProjectionError`). Otherwise it is matched in the area's search region, and the region is
 checked on the result (area_search.region_problem); the caller matches the whole image again
-when the check fails and tells the tracker (`region_failed`), which then forgets the area.
+when the check fails and tells the tracker (`region_failed`), which then forgets the area. The
+pair after a failed region waits up to `decision_wait_s` for the decision on the failed one
+(matched on the whole image, so it finds the object where it is now) instead of being matched
+on the whole image too: after a scene change, one pair is matched twice instead of every pair
+until that decision arrives.
 
 Thread-safe: decisions arrive on one thread, pairs are matched on another. ROS-free.
 """
 
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import dataclass
 
@@ -44,6 +49,8 @@ class TrackingConfig:
         max_age_s: Oldest area used, by pair stamps [s].
         margin_object_sizes: Region margin on each side in object extents [-].
         margin_m: Smallest region margin on each side [m].
+        decision_wait_s: Longest wait for the decision on a pair whose region failed before
+            the next pair is planned [s]; 0 does not wait.
     """
 
     enabled: bool = True
@@ -51,6 +58,7 @@ class TrackingConfig:
     max_age_s: float = 0.5
     margin_object_sizes: float = 1.0
     margin_m: float = 0.02
+    decision_wait_s: float = 0.015
 
 
 @dataclass(frozen=True)
@@ -67,23 +75,57 @@ class AreaTracker:
     def __init__(self, config: TrackingConfig | None = None) -> None:
         self.config = config or TrackingConfig()
         self._lock = threading.Lock()
+        self._decided = threading.Condition(self._lock)
         self._area: TrackedArea | None = None
         self._since_full = 0
+        self._newest_decision_s = -math.inf  # stamp of the newest pair decided [s]
+        self._awaited_s: float | None = None  # the failed region's pair stamp [s]
         self.last_problem = ''
 
-    def observe(self, area: TrackedArea | None) -> None:
-        """Take a decision's area (None: the decision found no object: search everywhere)."""
+    def observe(self, area: TrackedArea | None, stamp_s: float | None = None) -> None:
+        """Take a decision's area (None: the decision found no object: search everywhere).
+
+        Args:
+            area: The decision's area, or None.
+            stamp_s: Stamp of the pair decided [s] (the area's when None).
+        """
+        decided_s = area.stamp_s if stamp_s is None and area is not None else stamp_s
         if area is not None and area.problem() is not None:
             area = None
         with self._lock:
             if area is None or self._area is None or area.stamp_s >= self._area.stamp_s:
                 self._area = area
+            if decided_s is not None:
+                self._newest_decision_s = max(self._newest_decision_s, decided_s)
+                self._decided.notify_all()
 
-    def region_failed(self, problem: str) -> None:
-        """Forget the area: its region did not hold the object (area_search.region_problem)."""
+    def region_failed(self, problem: str, stamp_s: float | None = None) -> None:
+        """Forget the area: its region did not hold the object (area_search.region_problem).
+
+        Args:
+            problem: Why the region failed.
+            stamp_s: Stamp of the pair [s]: the next plan waits for its decision
+                (`wait_for_decision`); None does not wait.
+        """
         with self._lock:
             self._area = None
             self.last_problem = problem
+            self._awaited_s = stamp_s
+
+    def wait_for_decision(self) -> bool | None:
+        """Wait up to `decision_wait_s` for the decision on the last failed region's pair.
+
+        Returns:
+            None when no decision was awaited, else whether it arrived in time. Either way the
+            next call waits only after another failed region.
+        """
+        with self._decided:
+            awaited = self._awaited_s
+            self._awaited_s = None
+            if awaited is None or not self.config.enabled or self.config.decision_wait_s <= 0.0:
+                return None
+            return self._decided.wait_for(lambda: self._newest_decision_s >= awaited,
+                                          timeout=self.config.decision_wait_s)
 
     def plan(self, stamp_s: float, calibration: StereoCalibration,
              world_from_camera: np.ndarray | None, full_range: tuple[int, int]) -> SearchPlan:
