@@ -212,3 +212,19 @@ def test_after_a_failed_region_the_next_plan_waits_once_for_that_pairs_decision(
     tracker.config = TrackingConfig(decision_wait_s=0.0)
     tracker.region_failed(OBJECT_LOST, stamp_s=5.0)
     assert tracker.wait_for_decision() is None  # waiting turned off
+
+
+def test_a_failed_region_counts_as_a_whole_image_for_the_periodic_one():
+    rig = RIGS[0]
+    _, left, right = grid_matches(rig, None, 0.0, 8)
+    calibration = StereoCalibration(left, right)
+    pose = rig.world_from_left_camera()
+    tracker = AreaTracker(TrackingConfig(full_frame_every=3))
+    tracker.observe(box_area(0.0))
+    assert tracker.plan(0.1, calibration, pose, FULL_RANGE).region is not None
+    assert tracker.plan(0.2, calibration, pose, FULL_RANGE).region is not None
+    tracker.region_failed(OBJECT_LOST)  # pair 0.2 was matched on the whole image after all
+    tracker.observe(box_area(0.2))
+    reasons = [tracker.plan(stamp, calibration, pose, FULL_RANGE).reason
+               for stamp in (0.3, 0.4, 0.5)]
+    assert reasons == ['', '', PERIODIC]

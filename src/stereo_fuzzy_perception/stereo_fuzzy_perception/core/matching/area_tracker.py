@@ -111,6 +111,7 @@ class AreaTracker:
             self._area = None
             self.last_problem = problem
             self._awaited_s = stamp_s
+            self._since_full = 0  # the pair is matched on the whole image
 
     def wait_for_decision(self) -> bool | None:
         """Wait up to `decision_wait_s` for the decision on the last failed region's pair.
