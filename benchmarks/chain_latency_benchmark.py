@@ -69,6 +69,7 @@ SYNC_COUNTERS = ('pairs in', 'pairs out', 'pairs dropped', 'received left/image_
 CORRELATION_COUNTERS = ('pairs received', 'pairs processed', 'dropped superseded',
                         'pairs matched in the tracked area')
 WHOLE_IMAGE_PREFIX = 'pairs matched whole: '
+DECISION_WAIT_PREFIX = 'decisions waited for after a failed region: '
 SCENE_OBJECTS = ('cubic_square', 'cylinder', 'cubic_rectangle', 'circle')
 
 
@@ -375,7 +376,8 @@ def measure(monitor: ChainMonitor, publisher: PairPublisher, group: ProcessGroup
         correlation=counter_deltas(
             before[CORRELATION_STATUS], after[CORRELATION_STATUS],
             CORRELATION_COUNTERS + tuple(key for key in after[CORRELATION_STATUS]
-                                         if key.startswith(WHOLE_IMAGE_PREFIX))),
+                                         if key.startswith((WHOLE_IMAGE_PREFIX,
+                                                            DECISION_WAIT_PREFIX)))),
         fuzzy=counter_deltas(before[FUZZY_STATUS], after[FUZZY_STATUS],
                              ('decisions made', 'decisions refused')),
         correlation_mean_ms=correlation_mean_ms(before[CORRELATION_STATUS],
@@ -423,14 +425,18 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
 
     print('\n### Where correlation_node matched the pairs (tracked area, or the whole image and '
           'why)\n')
-    print('| rate [Hz] | tracked area | whole image (reason: pairs) |')
-    print('|---:|---:|---|')
+    print('| rate [Hz] | tracked area | whole image (reason: pairs) | after a failed region, '
+          "that pair's decision waited for (outcome: pairs) |")
+    print('|---:|---:|---|---|')
     for r in results:
         whole = ', '.join(f'{key[len(WHOLE_IMAGE_PREFIX):]}: {count}'
                           for key, count in r.correlation.items()
                           if key.startswith(WHOLE_IMAGE_PREFIX) and count)
+        waits = ', '.join(f'{key[len(DECISION_WAIT_PREFIX):]}: {count}'
+                          for key, count in r.correlation.items()
+                          if key.startswith(DECISION_WAIT_PREFIX))
         print(f'| {r.rate_hz:g} | {r.correlation["pairs matched in the tracked area"]} '
-              f'| {whole or "-"} |')
+              f'| {whole or "-"} | {waits or "-"} |')
 
     stages = list(dict.fromkeys(stage for r in results for stage in r.stage_ms))  # node order
     print('\n### Correlation node processing time [ms] (mean over the measurement; stages '
