@@ -11,13 +11,14 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     NO_POINTS,
     STATUS_OK,
     TOO_FEW_POINTS,
+    UNCERTAIN_TOP,
     AreaConfig,
     CorrelationArea,
     CorrelationAreaError,
     find_correlation_area,
 )
 from stereo_fuzzy_perception.core.best_point.four_areas import split_into_areas
-from stereo_fuzzy_perception.core.best_point.object_segmentation import across_m
+from stereo_fuzzy_perception.core.best_point.object_segmentation import across_m, hull_fill
 from stereo_fuzzy_perception.core.best_point.work_surface import SURFACE_MEASURED
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
@@ -131,7 +132,47 @@ def test_no_points_and_too_few_points_have_reasons():
     assert area.status == TOO_FEW_POINTS and 'min_points=20' in area.reason
 
 
+def test_a_top_face_scattered_beyond_max_top_spread_is_uncertain_not_taken():
+    # 0.8 m away, 0.5 px of disparity noise: the face's heights scatter by millimetres
+    box = Box((0.2, 0.15), 0.05, 0.03)
+    noisy = area_in(FAR_RIG, box, 0.5, 1, seed=3)
+    assert noisy.status == UNCERTAIN_TOP, noisy.reason
+    assert 'max_top_spread_m=0.002' in noisy.reason and 'not measured well enough' in noisy.reason
+    loose = area_in(FAR_RIG, box, 0.5, 1, seed=3, config=AreaConfig(max_top_spread_m=0.0))
+    assert loose.status == STATUS_OK, loose.reason
+    # the same face measured well is taken
+    assert area_in(FAR_RIG, box, 0.05, 1, seed=3).status == STATUS_OK
+
+
+def test_a_top_face_in_pieces_is_uncertain_not_taken():
+    points, left, right = grid_matches(RIG, Box((0.2, 0.15), 0.06, 0.03), 0.1, 1)
+    world = (points.xyz @ WORLD_FROM_LEFT[:3, :3].T) + WORLD_FROM_LEFT[:3, 3]
+    # a low-texture top: only its rim is matched (a ring 6 mm wide), the table all around
+    inner = (np.abs(world[:, 0] - 0.2) < 0.024) & (np.abs(world[:, 1] - 0.15) < 0.024)
+    ring = points.subset(~(inner & (world[:, 2] > 0.02)))
+    shift = float(left.P[0, 2] - right.P[0, 2])
+    area = find_correlation_area(ring, WORLD_FROM_LEFT, AreaConfig(), shift)
+    assert area.status == UNCERTAIN_TOP, area.reason
+    assert 'min_top_fill=0.5' in area.reason and 'in pieces' in area.reason
+    allowed = find_correlation_area(ring, WORLD_FROM_LEFT, AreaConfig(min_top_fill=0.0), shift)
+    assert allowed.status == STATUS_OK, allowed.reason
+
+
+@pytest.mark.parametrize('step', [1, 3])
+def test_hull_fill_is_one_for_a_solid_patch_and_small_for_a_ring(step):
+    u, v = (grid.ravel() for grid in np.meshgrid(np.arange(0, 60, step),
+                                                 np.arange(0, 45, step)))
+    assert hull_fill(u, v, step) == pytest.approx(1.0)
+    rim = (np.minimum(u, 57 - u) < 6) | (np.minimum(v, 42 - v) < 6)
+    assert hull_fill(u[rim], v[rim], step) < 0.5
+    assert hull_fill(u[:2], v[:2], step) == 1.0  # no outline to fill
+    assert hull_fill(np.arange(10.0), np.zeros(10), step) <= 1.0  # a line of cells
+
+
 def test_bad_configuration_names_the_value():
+    with pytest.raises(CorrelationAreaError, match='min_top_fill=-0.1 must not be negative'):
+        find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT,
+                              AreaConfig(min_top_fill=-0.1))
     with pytest.raises(CorrelationAreaError, match='top_band_sigmas=0'):
         find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT,
                               AreaConfig(top_band_sigmas=0.0))

@@ -45,6 +45,7 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     NO_RULE_FIRED,
     STATUS_OK,
     TOO_FEW_POINTS,
+    UNCERTAIN_TOP,
 )
 from stereo_fuzzy_perception.core.best_point.point_selectors import (
     OUTPUT_STATUSES,
@@ -85,8 +86,9 @@ from tf2_msgs.msg import TFMessage
 MALFORMED_INPUT = 'malformed_input'
 RIG_MISMATCH = 'rig_mismatch'
 INTERNAL_ERROR = 'internal_error'
-REFUSAL_REASONS = (NO_POINTS, NO_OBJECT, TOO_FEW_POINTS, DEGENERATE_AREA, NO_RULE_FIRED,
-                   MALFORMED_INPUT, RIG_MISMATCH, *OUTPUT_STATUSES, INTERNAL_ERROR)
+REFUSAL_REASONS = (NO_POINTS, NO_OBJECT, TOO_FEW_POINTS, UNCERTAIN_TOP, DEGENERATE_AREA,
+                   NO_RULE_FIRED, MALFORMED_INPUT, RIG_MISMATCH, *OUTPUT_STATUSES,
+                   INTERNAL_ERROR)
 ERROR_THROTTLE_S = 5.0
 HINT_THROTTLE_S = 60.0
 

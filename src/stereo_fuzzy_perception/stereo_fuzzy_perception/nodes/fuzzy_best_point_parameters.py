@@ -60,6 +60,14 @@ class FuzzyBestPointSettings:
     max_object_height_m: float = parameter(
         _AREA.max_object_height_m, 'A top face higher than this above the work surface is no '
         'object: refused, not taken [m]', 0.001, 10.0)
+    max_top_spread_m: float = parameter(
+        _AREA.max_top_spread_m, 'A top face whose heights scatter more than this (standard '
+        'deviation) is not measured well enough for a point: refused as uncertain_top, not '
+        'taken [m]; 0 = no limit', 0.0, 1.0)
+    min_top_fill: float = parameter(
+        _AREA.min_top_fill, "Share of the top face's outline in the left image (the convex hull "
+        'of its matches) that must hold matches; less is a face in pieces: refused as '
+        'uncertain_top [-]; 0 = no limit', 0.0, 1.0)
     # --- rig pose: a pose file (static_transform_publisher form), /tf_static, or the chapter's
     # alpha, theta, z0 (+ x0, y0, vergence) converted to the same transform (core/rig_pose.py)
     rig_pose_file: str = parameter(
@@ -88,7 +96,8 @@ class FuzzyBestPointSettings:
             min_disparity_sigma_px=self.min_disparity_sigma_px,
             assumed_disparity_sigma_px=self.assumed_disparity_sigma_px,
             min_points=self.min_points, max_object_across_m=self.max_object_across_m,
-            max_object_height_m=self.max_object_height_m)
+            max_object_height_m=self.max_object_height_m,
+            max_top_spread_m=self.max_top_spread_m, min_top_fill=self.min_top_fill)
 
     def problem(self) -> str | None:
         """Return why the correlation area settings cannot work, or None."""

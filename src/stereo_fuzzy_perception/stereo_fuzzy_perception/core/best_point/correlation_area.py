@@ -28,6 +28,7 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     choose_object,
     grid_step,
     grown_region,
+    hull_fill,
     image_regions,
     on_pixel_grid,
     smoothed_on_grid,
@@ -48,6 +49,7 @@ NO_POINTS = 'no_points'
 NO_OBJECT = 'no_object'
 TOO_FEW_POINTS = 'too_few_points'
 DEGENERATE_AREA = 'degenerate_area'
+UNCERTAIN_TOP = 'uncertain_top'
 NO_RULE_FIRED = 'no_rule_fired'
 
 OBJECT_TOP_SIGMAS = 2.0
@@ -99,6 +101,15 @@ class AreaConfig:
         max_object_height_m: A top face higher than this above the work surface is no
             object's [m]: the objects stand at most 80 mm high; a higher face is a blob of
             mismatches (repeated texture matched a period off) floating over the scene.
+        max_top_spread_m: A top face whose heights scatter more than this (standard
+            deviation) is not measured well enough for a point within millimetres [m]: a level
+            face scatters by its points' noise only, and side-wall or table points in the band
+            add to it. Measured on the randomized training scenes, larger errors come almost
+            only from faces beyond it; 0 turns the test off.
+        min_top_fill: Share of the top face's outline in the image (the convex hull of its
+            matches) that holds matches [-]: a face in pieces (arcs of a rim, bits of a side
+            wall, a low-texture top seen only at its edges) gives a centre that is not the
+            face's; 0 turns the test off.
     """
 
     workspace_min: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -113,6 +124,8 @@ class AreaConfig:
     min_points: int = 20
     max_object_across_m: float = 0.10
     max_object_height_m: float = 0.10
+    max_top_spread_m: float = 0.002
+    min_top_fill: float = 0.5
 
     def problem(self) -> str | None:
         """Return why this configuration is unusable, or None."""
@@ -126,6 +139,9 @@ class AreaConfig:
                      'max_object_height_m'):
             if not getattr(self, name) > 0.0:
                 return f'{name}={getattr(self, name)} must be positive'
+        for name in ('max_top_spread_m', 'min_top_fill'):
+            if not getattr(self, name) >= 0.0:
+                return f'{name}={getattr(self, name)} must not be negative'
         if self.object_sigmas < self.surface_margin_sigmas:
             return (f'object_sigmas={self.object_sigmas} must not be below '
                     f'surface_margin_sigmas={self.surface_margin_sigmas}')
@@ -370,12 +386,25 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                                   'work surface, longer than any object '
                                   f'(max_object_across_m={config.max_object_across_m:g})',
                        surface, regions, found.median_sigmas)
+    face_heights = heights[band]
+    spread = float(np.std(face_heights))
+    if config.max_top_spread_m and spread > config.max_top_spread_m:
+        return refused(UNCERTAIN_TOP, f"the top face's heights scatter by {1000.0 * spread:.1f} "
+                                      'mm (standard deviation), more than max_top_spread_m='
+                                      f'{config.max_top_spread_m:g}: not measured well enough '
+                                      'for a point', surface, regions, found.median_sigmas)
+    fill = hull_fill(u_left[band], v_left[band], step)
+    if fill < config.min_top_fill:
+        return refused(UNCERTAIN_TOP, f"the top face's matches fill {100.0 * fill:.0f} % of its "
+                                      f'outline in the image, less than min_top_fill='
+                                      f'{config.min_top_fill:g}: a face in pieces', surface,
+                       regions, found.median_sigmas)
     # A match on the pixel grid stands for the patch of the face its pixel sees,
     # Z_rect^3 / (f^2 |n . v|): |n . v| is the same for every point of a level face and Z_rect
     # is f B / d. Matches anywhere else (geometric scenes) are taken as spread evenly.
     weight = disparity[band] ** -3.0 if on_pixel_grid(u_left) else np.ones(used)
     weight /= weight.mean()
     return CorrelationArea(STATUS_OK, '', points_in, valid, regions, used,
-                           float(np.median(heights[band])), xyz_world, u_left[band],
+                           float(np.median(face_heights)), xyz_world, u_left[band],
                            v_left[band], u_right[band], score[band], weight, surface,
                            found.median_sigmas)

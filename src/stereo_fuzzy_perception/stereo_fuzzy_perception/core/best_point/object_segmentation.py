@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
+from scipy.spatial import ConvexHull, QhullError
 
 TOP_DENSE_SHARE = 0.25
 """A height bin belongs to the object's top when it holds this share of the fullest bin."""
@@ -115,6 +116,31 @@ def grown_region(u: np.ndarray, v: np.ndarray, member: np.ndarray, step: float,
     grown = ndimage.maximum_filter(grid.reshape(shape), size, mode='constant')
     inside: np.ndarray = grown.reshape(-1)[cells]
     return inside
+
+
+def hull_fill(u: np.ndarray, v: np.ndarray, step: float) -> float:
+    """Return the share of the convex hull of points in the image that their cells cover.
+
+    Each point stands for a step x step cell of the matches' grid; the hull is taken around
+    the cells (grown by half a cell), so a solid patch of any size fills about 1. Fewer than
+    three points or points on a line: 1 (no outline to fill).
+
+    Args:
+        u: (N,) left image column of every match [px].
+        v: (N,) row [px].
+        step: Grid spacing [px] (grid_step).
+    """
+    half = 0.5 * step
+    corners = np.concatenate([np.column_stack([np.asarray(u, dtype=float) + du,
+                                               np.asarray(v, dtype=float) + dv])
+                              for du in (-half, half) for dv in (-half, half)])
+    if len(u) < 3:
+        return 1.0
+    try:
+        outline = float(ConvexHull(corners).volume)  # the area, for points in a plane
+    except QhullError:
+        return 1.0
+    return min(1.0, len(u) * step ** 2 / outline) if outline > 0.0 else 1.0
 
 
 def image_regions(u: np.ndarray, v: np.ndarray, candidate: np.ndarray, step: float
