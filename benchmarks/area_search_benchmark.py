@@ -273,31 +273,10 @@ def randomized(per_type: int, stride: int, tolerance: float) -> None:
 
 def bag_scenes(bag: Path) -> list[tuple[float, np.ndarray, np.ndarray, Any]]:
     """Return the bag's pairs in stamp order: (stamp [s], left grey, right grey, calibration)."""
-    from rclpy.serialization import deserialize_message
-    from sensor_msgs.msg import CameraInfo, Image
-    from stereo_fuzzy_perception.bag.bag_io import read_messages
-    from stereo_fuzzy_perception.core.camera_model import StereoCalibration
-    from stereo_fuzzy_perception.nodes.conversions import (
-        camera_info_to_calibration,
-        image_to_array,
-        stamp_to_ns,
-    )
+    from stereo_fuzzy_perception.bag.stereo_pairs import read_stereo_pairs
 
-    types = {'/left/image_raw': Image, '/right/image_raw': Image,
-             '/left/camera_info': CameraInfo, '/right/camera_info': CameraInfo}
-    scenes: dict[int, dict[str, Any]] = {}
-    for message in read_messages(bag, types):
-        decoded = deserialize_message(message.data, types[message.topic])
-        scenes.setdefault(stamp_to_ns(decoded.header.stamp), {})[message.topic] = decoded
-    pairs = []
-    for stamp in sorted(scenes):
-        scene = scenes[stamp]
-        left, right = scene['/left/image_raw'], scene['/right/image_raw']
-        pairs.append((stamp * 1e-9, to_gray(image_to_array(left), left.encoding),
-                      to_gray(image_to_array(right), right.encoding), StereoCalibration(
-                          camera_info_to_calibration(scene['/left/camera_info']),
-                          camera_info_to_calibration(scene['/right/camera_info']))))
-    return pairs
+    return [(pair.stamp_ns * 1e-9, pair.left, pair.right, pair.calibration)
+            for pair in read_stereo_pairs(bag)]
 
 
 def replay_bags() -> None:

@@ -41,7 +41,6 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT / 'src' / 'stereo_fuzzy_perception'))
 
 from stereo_fuzzy_perception.core.camera_model import (  # noqa: E402
-    CameraCalibration,
     StereoCalibration,
 )
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline  # noqa: E402
@@ -52,6 +51,7 @@ from stereo_fuzzy_perception.core.matching.window_matcher import (  # noqa: E402
     warm_up,
 )
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
+from stereo_fuzzy_perception.simulation.synthetic_scenes import rectified_calibration  # noqa: E402
 
 SCENES = ('tsukuba', 'venus', 'sawtooth', 'barn1', 'cones', 'teddy')
 GT_SCALE = {'tsukuba': 16, 'venus': 8, 'sawtooth': 8, 'barn1': 8, 'cones': 4, 'teddy': 4}
@@ -170,12 +170,9 @@ def verged_calibration(width: int, height: int) -> StereoCalibration:
     """A toed-in rig (520 px focal length at 640 wide) calibrated as cv2.stereoRectify would."""
     focal = 520.0 * width / 640.0
     K = np.array([[focal, 0.0, width / 2], [0.0, focal, height / 2], [0.0, 0.0, 1.0]])
-    D = np.array([-0.05, 0.01, 0.0, 0.0, 0.0])
-    rotation, translation = StereoRig(baseline_m=0.06, vergence_deg=6.0).right_from_left()
-    R1, R2, P1, P2, *_ = cv2.stereoRectify(K, D, K, D, (width, height), rotation,
-                                           translation.reshape(3, 1), alpha=0)
-    return StereoCalibration(CameraCalibration(width, height, K, D, R1, P1),
-                             CameraCalibration(width, height, K, D, R2, P2))
+    return StereoCalibration(*rectified_calibration(
+        StereoRig(baseline_m=0.06, vergence_deg=6.0), K, width, height,
+        distortion=np.array([-0.05, 0.01, 0.0, 0.0, 0.0])))
 
 
 # (width, height, disparities) of the speed comparison; 640x480x64 is the reference case.

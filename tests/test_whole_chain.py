@@ -78,22 +78,13 @@ def offline_best_points(bag: Path, params_file: Path) -> dict[int, list[float] |
     box) and decides with fuzzy_best_point_node's selector and rig.
     """
     import yaml
-    from rclpy.serialization import deserialize_message
-    from sensor_msgs.msg import CameraInfo, Image
-    from stereo_fuzzy_perception.bag.bag_io import read_messages
+    from stereo_fuzzy_perception.bag.stereo_pairs import read_stereo_pairs
     from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig
     from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser
-    from stereo_fuzzy_perception.core.camera_model import StereoCalibration
-    from stereo_fuzzy_perception.core.image_encoding import to_gray
     from stereo_fuzzy_perception.core.matching.disparity_range import workspace_disparity_range
     from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
     from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
     from stereo_fuzzy_perception.core.rig_geometry import StereoRig
-    from stereo_fuzzy_perception.nodes.conversions import (
-        camera_info_to_calibration,
-        image_to_array,
-        stamp_to_ns,
-    )
 
     params = yaml.safe_load(params_file.read_text())
     correlation = params['correlation_node']['ros__parameters']
@@ -104,26 +95,17 @@ def offline_best_points(bag: Path, params_file: Path) -> dict[int, list[float] |
     pipeline = StereoMatchingPipeline(point_stride=int(correlation.get('point_stride', 1)))
     chooser = BestPointChooser.create(fuzzy.get('selector', 'fuzzy_fitted'), AreaConfig(), rig)
     area = AreaConfig()
-    types = {'/left/image_raw': Image, '/right/image_raw': Image,
-             '/left/camera_info': CameraInfo, '/right/camera_info': CameraInfo}
-    scenes: dict[int, dict[str, object]] = {}
-    for message in read_messages(bag, types):
-        decoded = deserialize_message(message.data, types[message.topic])
-        scenes.setdefault(stamp_to_ns(decoded.header.stamp), {})[message.topic] = decoded
     points: dict[int, list[float] | None] = {}
-    for stamp, scene in scenes.items():
-        left, right = scene['/left/image_raw'], scene['/right/image_raw']
-        calibration = StereoCalibration(camera_info_to_calibration(scene['/left/camera_info']),
-                                        camera_info_to_calibration(scene['/right/camera_info']))
+    for pair in read_stereo_pairs(bag):
+        calibration = pair.calibration
         derived = workspace_disparity_range(calibration, rig.world_from_left_camera(),
                                             area.workspace_min, area.workspace_max)
         pipeline.config = MatcherConfig(min_disparity=derived.min_disparity,
                                         disparity_range=derived.disparity_range)
-        result = pipeline.process(to_gray(image_to_array(left), left.encoding),
-                                  to_gray(image_to_array(right), right.encoding), calibration)
+        result = pipeline.process(pair.left, pair.right, calibration)
         decision = chooser.decide(result.points, result.rectified.left, result.rectified.right)
         point = decision.best_point_world
-        points[stamp] = None if point is None else [float(value) for value in point]
+        points[pair.stamp_ns] = None if point is None else [float(value) for value in point]
     return points
 
 

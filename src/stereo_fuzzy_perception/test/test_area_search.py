@@ -56,6 +56,13 @@ def box_area(stamp_s: float = 0.0) -> TrackedArea:
     return TrackedArea(stamp_s, border, BOX.height, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 0.1)
 
 
+def first_rig_view() -> tuple[StereoCalibration, np.ndarray]:
+    """The calibration of the first rig's pair and its left camera's pose in world."""
+    rig = RIGS[0]
+    _, left, right = grid_matches(rig, None, 0.0, 8)
+    return StereoCalibration(left, right), rig.world_from_left_camera()
+
+
 @pytest.mark.parametrize('rig', RIGS)
 def test_the_surface_disparity_is_affine_in_the_pixel(rig):
     points, left, right = grid_matches(rig, None, 0.0, 8, surface_z=0.01)
@@ -142,10 +149,7 @@ def test_a_few_mismatches_in_the_ring_are_tolerated():
 
 
 def test_the_tracker_searches_everywhere_until_an_area_then_on_schedule():
-    rig = RIGS[0]
-    _, left, right = grid_matches(rig, None, 0.0, 8)
-    calibration = StereoCalibration(left, right)
-    pose = rig.world_from_left_camera()
+    calibration, pose = first_rig_view()
     tracker = AreaTracker(TrackingConfig(full_frame_every=3, max_age_s=0.5))
 
     def plan(stamp: float) -> str:
@@ -178,17 +182,11 @@ def test_an_area_with_unusable_values_is_not_tracked():
     assert bad.problem()
     tracker = AreaTracker()
     tracker.observe(bad)
-    rig = RIGS[0]
-    _, left, right = grid_matches(rig, None, 0.0, 8)
-    assert tracker.plan(0.0, StereoCalibration(left, right), rig.world_from_left_camera(),
-                        FULL_RANGE).reason == NO_AREA
+    assert tracker.plan(0.0, *first_rig_view(), FULL_RANGE).reason == NO_AREA
 
 
 def test_after_a_failed_region_the_next_plan_waits_once_for_that_pairs_decision():
-    rig = RIGS[0]
-    _, left, right = grid_matches(rig, None, 0.0, 8)
-    calibration = StereoCalibration(left, right)
-    pose = rig.world_from_left_camera()
+    calibration, pose = first_rig_view()
     tracker = AreaTracker(TrackingConfig(decision_wait_s=60.0))
     assert tracker.wait_for_decision() is None  # nothing failed: no wait
     tracker.region_failed(OBJECT_LOST, stamp_s=2.0)
@@ -215,10 +213,7 @@ def test_after_a_failed_region_the_next_plan_waits_once_for_that_pairs_decision(
 
 
 def test_a_failed_region_counts_as_a_whole_image_for_the_periodic_one():
-    rig = RIGS[0]
-    _, left, right = grid_matches(rig, None, 0.0, 8)
-    calibration = StereoCalibration(left, right)
-    pose = rig.world_from_left_camera()
+    calibration, pose = first_rig_view()
     tracker = AreaTracker(TrackingConfig(full_frame_every=3))
     tracker.observe(box_area(0.0))
     assert tracker.plan(0.1, calibration, pose, FULL_RANGE).region is not None

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from stereo_fuzzy_perception.core.camera_model import CameraCalibration, StereoCalibration
+from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.matching.area_search import OBJECT_LOST, SearchRegion
 from stereo_fuzzy_perception.core.matching.rectification import (
     StereoRectifier,
@@ -20,6 +20,7 @@ from stereo_fuzzy_perception.core.matching.window_matcher import (
     pixels_read,
 )
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+from stereo_fuzzy_perception.simulation.synthetic_scenes import rectified_calibration
 
 WIDTH, HEIGHT = 160, 120
 
@@ -27,12 +28,9 @@ WIDTH, HEIGHT = 160, 120
 def verged_calibration() -> StereoCalibration:
     """A toed-in, distorted rig calibrated as cv2.stereoRectify would."""
     K = np.array([[150.0, 0.0, 80.0], [0.0, 150.0, 60.0], [0.0, 0.0, 1.0]])
-    D = np.array([-0.05, 0.01, 0.0, 0.0, 0.0])
-    rotation, translation = StereoRig(baseline_m=0.06, vergence_deg=6.0).right_from_left()
-    R1, R2, P1, P2, *_ = cv2.stereoRectify(K, D, K, D, (WIDTH, HEIGHT), rotation,
-                                           translation.reshape(3, 1), alpha=0)
-    return StereoCalibration(CameraCalibration(WIDTH, HEIGHT, K, D, R1, P1),
-                             CameraCalibration(WIDTH, HEIGHT, K, D, R2, P2))
+    return StereoCalibration(*rectified_calibration(
+        StereoRig(baseline_m=0.06, vergence_deg=6.0), K, WIDTH, HEIGHT,
+        distortion=np.array([-0.05, 0.01, 0.0, 0.0, 0.0])))
 
 
 def raw_pair(seed: int) -> tuple[np.ndarray, np.ndarray]:

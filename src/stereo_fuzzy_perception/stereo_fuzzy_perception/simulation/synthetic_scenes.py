@@ -47,22 +47,25 @@ def default_camera_matrix(width: int = IMAGE_WIDTH, height: int = IMAGE_HEIGHT,
 def rectified_calibration(rig: StereoRig, K: np.ndarray | None = None,
                           width: int = IMAGE_WIDTH, height: int = IMAGE_HEIGHT,
                           frame_id: str = 'left_camera_optical_frame',
+                          distortion: np.ndarray | None = None,
                           ) -> tuple[CameraCalibration, CameraCalibration]:
     """Return the (left, right) rectified calibration of `rig` as cv2.stereoRectify makes it.
 
     Args:
         rig: The stereo rig; its relative pose gives R, T.
-        K: Intrinsics of both cameras [px]; the default camera when None. No distortion.
+        K: Intrinsics of both cameras [px]; the default camera when None.
         width: Image width [px].
         height: Image height [px].
         frame_id: Optical frame name recorded in the left calibration.
+        distortion: Plumb-bob coefficients of both cameras (k1, k2, p1, p2, k3); none when
+            None.
 
     Returns:
         Left and right CameraCalibration with R, P from cv2.stereoRectify (zero disparity at
         infinity, so both rectified principal points coincide).
     """
     K = default_camera_matrix(width, height) if K is None else np.asarray(K, dtype=float)
-    D = np.zeros(5)
+    D = np.zeros(5) if distortion is None else np.asarray(distortion, dtype=float)
     R, T = rig.right_from_left()
     T = T.reshape(3, 1)
     R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(K, D, K, D, (width, height), R, T,
