@@ -59,7 +59,7 @@ def test_the_demo_waits_for_every_link_of_the_chain(ros_context):
 # it must find at least this many of them within DEMO_TOLERANCE_MM (6 of 8 with the packaged
 # selectors and the correlation area of main 440b8b6: 0.9-7.9 mm, two without a point; 5 of 8
 # since the uncertain_top refusals: an object 80 mm high whose top heights scatter by 2.8 mm is
-# too), and exactly the best points the same code finds offline on the bag's images.
+# refused too), and exactly the best points the same code finds offline on the bag's images.
 HELD_OUT_RIG_BAGS = {'held_out_rig_scenes': 5}
 
 
