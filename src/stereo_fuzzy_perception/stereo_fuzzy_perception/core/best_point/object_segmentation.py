@@ -20,6 +20,7 @@ same thresholds hold near and far:
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 
@@ -130,12 +131,17 @@ def hull_fill(u: np.ndarray, v: np.ndarray, step: float) -> float:
         v: (N,) row [px].
         step: Grid spacing [px] (grid_step).
     """
-    half = 0.5 * step
-    corners = np.concatenate([np.column_stack([np.asarray(u, dtype=float) + du,
-                                               np.asarray(v, dtype=float) + dv])
-                              for du in (-half, half) for dv in (-half, half)])
     if len(u) < 3:
         return 1.0
+    centres = np.column_stack([np.asarray(u, dtype=float), np.asarray(v, dtype=float)])
+    # The hull of the cells is the hull of the corners of the cells at the centres' hull
+    # vertices: two small hulls instead of one over four corners of every point. Centres on a
+    # line have no hull: then every centre's corners.
+    with contextlib.suppress(QhullError):
+        centres = centres[ConvexHull(centres).vertices]
+    half = 0.5 * step
+    corners = np.concatenate([centres + (du, dv) for du in (-half, half)
+                              for dv in (-half, half)])
     try:
         outline = float(ConvexHull(corners).volume)  # the area, for points in a plane
     except QhullError:
