@@ -56,10 +56,8 @@ def test_the_demo_waits_for_every_link_of_the_chain(ros_context):
 
 # Bags from rigs of the scene distribution that no selector was fitted on: the chain need not
 # find every object there yet (benchmarks/rig_generalisation_benchmark.py has the figures);
-# it must find at least this many of them within DEMO_TOLERANCE_MM (6 of 8 with the packaged
-# selectors and the correlation area of main 440b8b6: 0.9-7.9 mm, two without a point; 5 of 8
-# since the uncertain_top refusals: an object 80 mm high whose top heights scatter by 2.8 mm is
-# refused too), and exactly the best points the same code finds offline on the bag's images.
+# it must find at least this many of them within DEMO_TOLERANCE_MM (bags/README.md has the
+# bag's last count), and exactly the best points the same code finds offline on its images.
 HELD_OUT_RIG_BAGS = {'held_out_rig_scenes': 5}
 
 
