@@ -109,7 +109,8 @@ def _hull_outline(u: np.ndarray, v: np.ndarray, step: float) -> np.ndarray | Non
         largest = np.argmax(np.bincount(labels)[1:]) + 1
         u, v = u[labels == largest], v[labels == largest]
     half = 0.5 * (step - 1.0)
-    centres = np.column_stack([u, v]).astype(np.float32)
+    # the corners of the cells at the centres' hull vertices only: the same hull
+    centres = cv2.convexHull(np.column_stack([u, v]).astype(np.float32)).reshape(-1, 2)
     corners = np.concatenate([centres + np.array([du, dv], dtype=np.float32)
                               for du in (-half, half) for dv in (-half, half)])
     hull = cv2.convexHull(corners).reshape(-1, 2)
@@ -183,7 +184,7 @@ def _on_top_plane(area: CorrelationArea, columns: np.ndarray, rows: np.ndarray,
     pose = np.asarray(world_from_camera, dtype=float)
     rectification = np.asarray(left.R, dtype=float).reshape(3, 3)
     intrinsic = np.asarray(left.P, dtype=float)[:3, :3]
-    rays_rectified = np.linalg.solve(intrinsic, np.vstack([columns, rows, np.ones_like(rows)]))
+    rays_rectified = np.linalg.inv(intrinsic) @ np.vstack([columns, rows, np.ones_like(rows)])
     rays = pose[:3, :3] @ rectification.T @ rays_rectified  # (3, M) in world
     surface = area.surface
     normal = surface.normal
