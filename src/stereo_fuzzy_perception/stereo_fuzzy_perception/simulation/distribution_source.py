@@ -147,9 +147,9 @@ def match_scene(scene: DistributionScene, strides: Iterable[int] = (1,), ceiling
     matched = {stride: _synthetic(frame, scene, result.points if single else dataclasses.replace(
         triangulate(disparity_map.disparity, disparity_map.score, rectified, stride),
         left_image=image), rectified) for stride in strides}
-    perfect = ({stride: _synthetic(frame, scene, dataclasses.replace(
-        perfect_points(frame, rectified, stride), left_image=image), rectified)
-        for stride in strides} if ceiling else {})
+    # The ceiling: perfect depth, whose own outline is exact (no image to correct it with).
+    perfect = ({stride: _synthetic(frame, scene, perfect_points(frame, rectified, stride),
+                                   rectified) for stride in strides} if ceiling else {})
     opencv_point = None
     if opencv:
         reference = OpenCvReference(config.min_disparity, config.disparity_range)

@@ -11,8 +11,10 @@ top and what lies beyond it. So, when the matches come with the rectified image:
    (the objects' tops are convex, and so are their images).
 2. Each point of that outline moves along its normal to the strongest intensity edge across it,
    within the reach of fattening inward (the window's radius and a pixel) and OUTWARD_PX
-   outward; the moves are median-filtered along the outline, so that the texture's own edges
-   cannot pull single points away.
+   outward, the edges weighted by a Gaussian of the move (sigma: that inward reach) so that
+   where the matches already found the rim a texture edge nearby does not pull it away; the
+   moves are median-filtered along the outline, so that the texture's own edges cannot pull
+   single points away either.
 3. The face is the convex hull of the moved outline. Its pixels, on the matches' grid, are cut
    with the top face's plane (the measured surface raised by the top height) along their rays:
    points spread evenly over the whole face, each weighted by the patch of the face it sees.
@@ -146,6 +148,9 @@ def _snapped(crop: np.ndarray, hull: np.ndarray, inward: float) -> np.ndarray | 
     where = [tried[..., 1], tried[..., 0]]
     across = np.abs(ndimage.map_coordinates(gradient_u, where, order=1) * normals[:, 0]
                     + ndimage.map_coordinates(gradient_v, where, order=1) * normals[:, 1])
+    # A weak preference for small moves: where the matches already found the rim, a texture
+    # edge a few pixels inside the face must be much stronger to pull the outline to it.
+    across *= np.exp(-0.5 * (offsets / inward) ** 2)[:, None]
     moves = ndimage.median_filter(offsets[np.argmax(across, axis=0)], size=MEDIAN_POINTS,
                                   mode='wrap')
     moved: np.ndarray = contour + moves[:, None] * normals
