@@ -151,6 +151,8 @@ def test_empty_cloud_gives_a_reason_and_no_best_point(harness):
 
 
 def test_malformed_input_is_reported_and_the_node_keeps_going(harness):
+    from sensor_msgs.msg import Image
+
     scene = make_scene()
     run = harness()
     broken = matches_message(scene, stamp_sec=5)
@@ -162,18 +164,23 @@ def test_malformed_input_is_reported_and_the_node_keeps_going(harness):
     uncalibrated.right_info.p = [0.0] * 12
     run.send(uncalibrated, 2)
     assert run.decisions[1].status.startswith('malformed_input: rectified calibration')
-    run.send(matches_message(scene, stamp_sec=7), 3)
+    colour = matches_message(scene, stamp_sec=7)
+    colour.left_rectified = Image(height=2, width=2, encoding='rgb8', step=6, data=b'\0' * 12)
+    colour.left_rectified_roi.width = colour.left_rectified_roi.height = 2
+    run.send(colour, 3)
+    assert run.decisions[2].status.startswith("malformed_input: left_rectified: encoding 'rgb8'")
+    run.send(matches_message(scene, stamp_sec=8), 4)
     wait_until(lambda: run.points, TIMEOUT, 'a best point after bad inputs', run.executor)
-    assert [p.header.stamp.sec for p in run.points] == [7]
+    assert [p.header.stamp.sec for p in run.points] == [8]
 
     def counted():
         if not run.diagnostics:
             return False
         values = {kv.key: kv.value for kv in run.diagnostics[-1].status[0].values}
         return values.get('decisions made') == '1' and values.get(
-            'refused malformed_input') == '2'
+            'refused malformed_input') == '3'
 
-    wait_until(counted, TIMEOUT, 'diagnostics counting 1 made and 2 malformed', run.executor)
+    wait_until(counted, TIMEOUT, 'diagnostics counting 1 made and 3 malformed', run.executor)
     assert run.diagnostics[-1].status[0].hardware_id == 'fuzzy_best_point_node', (
         'hardware_id names the node (it drives no device)')
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
-from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 from stereo_fuzzy_perception.simulation.synthetic_scenes import (
     default_camera_matrix,
@@ -40,12 +40,16 @@ class Box:
 
 def grid_matches(rig: StereoRig, box: Box | None, noise_px: float, stride: int = 1,
                  seed: int = 0, fov_deg: float = 45.0, surface_z: float = 0.0,
-                 surface_slope: tuple[float, float] = (0.0, 0.0), window: int = 9
+                 surface_slope: tuple[float, float] = (0.0, 0.0), window: int = 9,
+                 fatten_px: int = 0, image: bool = False
                  ) -> tuple[MatchedPoints, CameraCalibration, CameraCalibration]:
     """Return (matches, left, right rectified calibrations) of a box on a (tilted) surface.
 
     The surface is z = surface_z + slope_x x + slope_y y; the box stands on z = surface_z with
-    its top at surface_z + height. Side walls are not drawn.
+    its top at surface_z + height. Side walls are not drawn. `fatten_px` gives the top's
+    disparity to that many pixels right of its rim (as a window straddling a rim whose table
+    side is plain would); `image` attaches the left rectified image: a textured table and a
+    brighter textured top.
     """
     left, right = rectified_calibration(rig, default_camera_matrix(vertical_fov_deg=fov_deg))
     focal, cx, cy = left.P[0, 0], left.P[0, 2], left.P[1, 2]
@@ -65,8 +69,18 @@ def grid_matches(rig: StereoRig, box: Box | None, noise_px: float, stride: int =
             top_depth = (surface_z + box.height - centre[2]) / world_rays[..., 2]
             top = centre + top_depth[..., None] * world_rays
             on_top = box.covers(top[..., 0], top[..., 1]) & (top_depth > 0)
-            depth = np.where(on_top, top_depth, depth)
+            fattened = on_top.copy()
+            for shift in range(1, fatten_px + 1):
+                fattened[:, shift:] |= on_top[:, :-shift]
+            depth = np.where(fattened, top_depth, depth)
     rng = np.random.default_rng(seed)
+    picture = None
+    if image:
+        texture = ndimage.uniform_filter(rng.normal(size=depth.shape), 3)
+        texture *= 25.0 / float(texture.std())
+        brighter = 60.0 + (110.0 * on_top if box is not None else 0.0)
+        picture = RectifiedImage(np.clip(brighter + texture, 0, 255).astype(np.uint8),
+                                 window_size=window)
     noise = ndimage.uniform_filter(rng.normal(size=depth.shape), window)
     noise *= noise_px / max(float(noise.std()), 1e-12)
     disparity = f_baseline / depth + noise
@@ -75,7 +89,8 @@ def grid_matches(rig: StereoRig, box: Box | None, noise_px: float, stride: int =
     rectified = rectified_rays[keep] * (f_baseline / disparity[keep])[:, None]
     xyz = rectified @ np.asarray(left.R)  # R^T applied to row vectors
     u = columns[keep]
-    points = MatchedPoints(xyz, u, rows[keep], u - disparity[keep], np.ones(int(keep.sum())))
+    points = MatchedPoints(xyz, u, rows[keep], u - disparity[keep], np.ones(int(keep.sum())),
+                           picture)
     return points, left, right
 
 

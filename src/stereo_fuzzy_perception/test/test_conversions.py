@@ -70,3 +70,61 @@ def test_camera_info_round_trip():
         np.array([[500.0, 0, 320, -30], [0, 500, 239, 0], [0, 0, 1, 0]]), frame_id='right')
     assert camera_info_to_calibration(calibration_to_camera_info(calibration)).same_as(
         calibration)
+
+
+def _matches_with_image(pixels, x, y):
+    from std_msgs.msg import Header
+    from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+    from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
+    from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
+    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+    from stereo_fuzzy_perception.nodes.conversions import stereo_matches_message
+    from stereo_fuzzy_perception.simulation.synthetic_scenes import rectified_calibration
+
+    points = MatchedPoints.empty()
+    points.left_image = RectifiedImage(pixels, x, y, 11)
+    calibration = StereoCalibration(*rectified_calibration(StereoRig(), width=64, height=48))
+    return stereo_matches_message(Header(frame_id='left'), calibration, points,
+                                  MatcherConfig(window_size=11))
+
+
+@pytest.mark.parametrize('dtype', [np.uint8, np.uint16])
+def test_the_rectified_image_travels_with_the_matches(dtype):
+    from stereo_fuzzy_perception.nodes.conversions import stereo_matches_image
+
+    pixels = np.random.default_rng(3).integers(0, np.iinfo(dtype).max, (20, 30), dtype=dtype)
+    image = stereo_matches_image(_matches_with_image(pixels, 5, 7))
+    assert image is not None
+    np.testing.assert_array_equal(image.pixels, pixels)
+    assert (image.x, image.y, image.window_size) == (5, 7, 11)
+
+
+def test_matches_without_an_image_have_none():
+    from stereo_fuzzy_perception.nodes.conversions import stereo_matches_image
+
+    from stereo_fuzzy_msgs.msg import StereoMatches
+
+    assert stereo_matches_image(StereoMatches()) is None
+
+
+def test_a_malformed_rectified_image_is_named():
+    from sensor_msgs.msg import Image
+    from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError
+    from stereo_fuzzy_perception.nodes.conversions import stereo_matches_image
+
+    pixels = np.zeros((20, 30), dtype=np.uint8)
+    colour = _matches_with_image(pixels, 0, 0)
+    colour.left_rectified = Image(height=2, width=2, encoding='rgb8', step=6, data=b'\0' * 12)
+    with pytest.raises(ImageEncodingError, match="encoding 'rgb8', need mono8 or mono16"):
+        stereo_matches_image(colour)
+    resized = _matches_with_image(pixels, 0, 0)
+    resized.left_rectified_roi.width = 29
+    with pytest.raises(ImageEncodingError, match='left_rectified is 30x20 but .* 29x20'):
+        stereo_matches_image(resized)
+    outside = _matches_with_image(pixels, 40, 0)  # 40 + 30 > 64
+    with pytest.raises(ImageEncodingError, match='reaches past the 64x48 rectified image'):
+        stereo_matches_image(outside)
+    short = _matches_with_image(pixels, 0, 0)
+    short.left_rectified.data = short.left_rectified.data[:100]
+    with pytest.raises(ImageEncodingError, match='left_rectified: data holds 100 bytes'):
+        stereo_matches_image(short)

@@ -7,6 +7,23 @@ from dataclasses import dataclass
 import numpy as np
 
 
+@dataclass(frozen=True)
+class RectifiedImage:
+    """The part of the left rectified image that matches were found in.
+
+    Attributes:
+        pixels: (H, W) grey image, uint8 or uint16.
+        x: Column of pixels[0, 0] in the rectified image [px].
+        y: Row of pixels[0, 0] [px].
+        window_size: Side of the correlation window the matches were found with [px].
+    """
+
+    pixels: np.ndarray
+    x: int = 0
+    y: int = 0
+    window_size: int = 9
+
+
 @dataclass
 class MatchedPoints:
     """Valid matches of one stereo pair, one row per point.
@@ -17,6 +34,9 @@ class MatchedPoints:
         v_left: (N,) row in both rectified images [px].
         u_right: (N,) column in the right rectified image [px].
         score: (N,) correlation score at the match (Eq. 8 coefficient, -1..1).
+        left_image: The left rectified image the matches were found in (the part the matcher
+            read), when it came with them: the fuzzy stage takes the top face's outline from
+            it (face_outline.py).
     """
 
     xyz: np.ndarray
@@ -24,6 +44,7 @@ class MatchedPoints:
     v_left: np.ndarray
     u_right: np.ndarray
     score: np.ndarray
+    left_image: RectifiedImage | None = None
 
     def __len__(self) -> int:
         return int(self.xyz.shape[0])
@@ -38,4 +59,4 @@ class MatchedPoints:
     def subset(self, mask: np.ndarray) -> MatchedPoints:
         """Return the points selected by a boolean mask or index array."""
         return MatchedPoints(self.xyz[mask], self.u_left[mask], self.v_left[mask],
-                             self.u_right[mask], self.score[mask])
+                             self.u_right[mask], self.score[mask], self.left_image)

@@ -78,6 +78,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     cloud_to_matched_points,
     decision_to_markers,
     decision_to_message,
+    stereo_matches_image,
     tf_message_to_transforms,
 )
 from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import FuzzyBestPointSettings
@@ -239,6 +240,7 @@ class FuzzyBestPointNode(Node):
             self.matches_sequence.observe(int(msg.sequence))
         try:
             points = cloud_to_matched_points(msg.points)
+            points.left_image = stereo_matches_image(msg)
             left = camera_info_to_calibration(msg.left_info)
             right = camera_info_to_calibration(msg.right_info)
             problem = StereoCalibration(left, right).problem()

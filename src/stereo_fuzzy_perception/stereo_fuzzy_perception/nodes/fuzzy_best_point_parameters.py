@@ -68,6 +68,11 @@ class FuzzyBestPointSettings:
         _AREA.min_top_fill, "Share of the top face's outline in the left image (the convex hull "
         'of its matches) that must hold matches; less is a face in pieces: refused as '
         'uncertain_top [-]; 0 = no limit', 0.0, 1.0)
+    outline_from_image: bool = parameter(
+        _AREA.outline_from_image, "Take the top face's outline from the edges of the left "
+        'rectified image that comes with the matches (StereoMatches.left_rectified) rather than '
+        'from the matches alone: the matches place the rim only to within half a correlation '
+        'window')
     # --- rig pose: a pose file (static_transform_publisher form), /tf_static, or the chapter's
     # alpha, theta, z0 (+ x0, y0, vergence) converted to the same transform (core/rig_pose.py)
     rig_pose_file: str = parameter(
@@ -97,7 +102,8 @@ class FuzzyBestPointSettings:
             assumed_disparity_sigma_px=self.assumed_disparity_sigma_px,
             min_points=self.min_points, max_object_across_m=self.max_object_across_m,
             max_object_height_m=self.max_object_height_m,
-            max_top_spread_m=self.max_top_spread_m, min_top_fill=self.min_top_fill)
+            max_top_spread_m=self.max_top_spread_m, min_top_fill=self.min_top_fill,
+            outline_from_image=self.outline_from_image)
 
     def problem(self) -> str | None:
         """Return why the correlation area settings cannot work, or None."""

@@ -143,9 +143,11 @@ def match_scene(scene: DistributionScene, strides: Iterable[int] = (1,), ceiling
     result = pipeline.process(left, right, frame.calibration, full_disparity=not single)
     rectified = result.rectified
     disparity_map = result.disparity_map
-    matched = {stride: _synthetic(frame, scene, result.points if single else triangulate(
-        disparity_map.disparity, disparity_map.score, rectified, stride), rectified)
-        for stride in strides}
+    image = result.points.left_image  # the face's outline is taken from it (face_outline.py)
+    matched = {stride: _synthetic(frame, scene, result.points if single else dataclasses.replace(
+        triangulate(disparity_map.disparity, disparity_map.score, rectified, stride),
+        left_image=image), rectified) for stride in strides}
+    # The ceiling: perfect depth, whose own outline is exact (no image to correct it with).
     perfect = ({stride: _synthetic(frame, scene, perfect_points(frame, rectified, stride),
                                    rectified) for stride in strides} if ceiling else {})
     opencv_point = None

@@ -52,6 +52,10 @@ DEGENERATE_AREA = 'degenerate_area'
 UNCERTAIN_TOP = 'uncertain_top'
 NO_RULE_FIRED = 'no_rule_fired'
 
+# Where the top face's outline comes from (CorrelationArea.outline).
+OUTLINE_MATCHES = 'matches'
+OUTLINE_IMAGE = 'image'
+
 OBJECT_TOP_SIGMAS = 2.0
 """An object's top face stands at least this many sigmas of its points above the surface
 (object_segmentation.choose_object)."""
@@ -110,6 +114,9 @@ class AreaConfig:
             matches) that holds matches [-]: a face in pieces (arcs of a rim, bits of a side
             wall, a low-texture top seen only at its edges) gives a centre that is not the
             face's; 0 turns the test off.
+        outline_from_image: When the matches come with the left rectified image, take the
+            top face's outline from the image's edges (face_outline.py) rather than from the
+            matches alone.
     """
 
     workspace_min: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -126,6 +133,7 @@ class AreaConfig:
     max_object_height_m: float = 0.10
     max_top_spread_m: float = 0.002
     min_top_fill: float = 0.5
+    outline_from_image: bool = True
 
     def problem(self) -> str | None:
         """Return why this configuration is unusable, or None."""
@@ -177,6 +185,8 @@ class CorrelationArea:
             denser where the face is nearer, so an unweighted mean leans toward the cameras.
         surface: The work surface and the pair's disparity noise.
         object_height_sigmas: Median height of the object's region in sigmas (NaN: none).
+        outline: OUTLINE_MATCHES when the points are the face's matches, OUTLINE_IMAGE when
+            they are its pixels inside the outline taken from the image (face_outline.py).
     """
 
     status: str
@@ -194,6 +204,7 @@ class CorrelationArea:
     weight: np.ndarray | None = None
     surface: SurfacePlane = ASSUMED_SURFACE
     object_height_sigmas: float = math.nan
+    outline: str = OUTLINE_MATCHES
 
     def point_weights(self) -> np.ndarray:
         """Return the points' weights (ones when none were given)."""

@@ -33,6 +33,7 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     CorrelationArea,
     find_correlation_area,
 )
+from stereo_fuzzy_perception.core.best_point.face_outline import face_from_image
 from stereo_fuzzy_perception.core.best_point.four_areas import FourAreas, split_into_areas
 from stereo_fuzzy_perception.core.best_point.fuzzy_inference import infer
 from stereo_fuzzy_perception.core.best_point.neural_baseline import (
@@ -235,6 +236,10 @@ class BestPointChooser:
             decision.rule_names = [rule.name for rule in self.rule_base.rules]
         area = find_correlation_area(points, self.world_from_camera, self.area_config,
                                      disparity_shift(left, right))
+        if area.ok and points.left_image is not None and self.area_config.outline_from_image:
+            outlined = face_from_image(area, points.left_image, left, right,
+                                       self.world_from_camera, self.area_config.min_points)
+            area = outlined or area
         decision.surface = area.surface
         decision.object_height_sigmas = area.object_height_sigmas
         decision.points_in, decision.points_valid = area.points_in, area.points_valid

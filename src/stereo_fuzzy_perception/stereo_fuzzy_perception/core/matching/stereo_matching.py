@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
-from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
 from stereo_fuzzy_perception.core.matching.area_search import SearchRegion, region_problem
 from stereo_fuzzy_perception.core.matching.rectification import StereoRectifier
 from stereo_fuzzy_perception.core.matching.triangulation import triangulate
@@ -106,7 +106,8 @@ class StereoMatchingPipeline:
             problem = region_problem(disparity_map, region, stride) or ''
             if not problem:
                 return self._finish(rectified, disparity_map, start, rectified_at, matched_at,
-                                    timings, region)
+                                    timings, _part_read(left_rect, narrowed, calibration),
+                                    region)
             timings['region'] = 1e3 * (time.perf_counter() - start)
             start = time.perf_counter()
         # after a region, only what its rectification did not cover
@@ -117,7 +118,7 @@ class StereoMatchingPipeline:
                               threads=self.threads)
         matched_at = time.perf_counter()
         return self._finish(rectified, disparity_map, start, rectified_at, matched_at, timings,
-                            None, problem)
+                            _part_read(left_rect, config, calibration), None, problem)
 
     def _rectify(self, left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
                  config: MatcherConfig, continued: bool = False
@@ -139,12 +140,24 @@ class StereoMatchingPipeline:
 
     def _finish(self, rectified: StereoCalibration, disparity_map: DisparityMap, start: float,
                 rectified_at: float, matched_at: float, timings: dict[str, float],
-                region: SearchRegion | None, problem: str = '') -> StereoMatchResult:
+                left_image: RectifiedImage, region: SearchRegion | None, problem: str = ''
+                ) -> StereoMatchResult:
         """Triangulate and return the result with the steps' times."""
         points = triangulate(disparity_map.disparity, disparity_map.score, rectified,
                              self.point_stride)
+        points.left_image = left_image
         done = time.perf_counter()
         timings.update(rectify=1e3 * (rectified_at - start),
                        match=1e3 * (matched_at - rectified_at),
                        triangulate=1e3 * (done - matched_at))
         return StereoMatchResult(rectified, disparity_map, points, timings, region, problem)
+
+
+def _part_read(left_rect: np.ndarray, config: MatcherConfig, calibration: StereoCalibration
+               ) -> RectifiedImage:
+    """Return a copy of the part of the left rectified image that a match with config read
+    (the rectifier's buffers hold other pairs' pixels elsewhere and are reused)."""
+    read = pixels_read(config, calibration.left.width, calibration.left.height)
+    (top, bottom), (first, last) = read.rows, read.left_columns
+    return RectifiedImage(left_rect[top:bottom, first:last].copy(), first, top,
+                          config.window_size)

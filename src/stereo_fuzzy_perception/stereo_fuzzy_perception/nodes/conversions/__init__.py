@@ -38,6 +38,7 @@ from stereo_fuzzy_perception.nodes.conversions.point_cloud import (
 from stereo_fuzzy_perception.nodes.conversions.stereo import (
     check_pair_size,
     disparity_image_message,
+    stereo_matches_image,
     stereo_matches_message,
     stereo_pair_to_domain,
 )
@@ -69,6 +70,7 @@ __all__ = [
     'image_to_array',
     'matched_points_to_cloud',
     'stamp_to_ns',
+    'stereo_matches_image',
     'stereo_matches_message',
     'stereo_pair_to_domain',
     'tf_message_to_transforms',

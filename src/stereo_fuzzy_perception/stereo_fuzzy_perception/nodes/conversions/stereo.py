@@ -17,10 +17,11 @@ from stereo_msgs.msg import DisparityImage
 
 from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
-from stereo_fuzzy_perception.core.image_encoding import to_gray
-from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError, to_gray
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
 from stereo_fuzzy_perception.nodes.conversions.images import (
     ImageSizeError,
+    array_to_image,
     byte_array,
     calibration_to_camera_info,
     camera_info_to_calibration,
@@ -68,11 +69,50 @@ def stereo_matches_message(header: Header, rectified: StereoCalibration, points:
     msg.left_info = calibration_to_camera_info(rectified.left, header)
     msg.right_info = calibration_to_camera_info(rectified.right, header)
     msg.points = matched_points_to_cloud(points, header)
+    image = points.left_image
+    if image is not None:
+        msg.left_rectified = array_to_image(
+            image.pixels, 'mono16' if image.pixels.dtype == np.uint16 else 'mono8', header)
+        msg.left_rectified_roi = RegionOfInterest(
+            x_offset=int(image.x), y_offset=int(image.y), width=int(image.pixels.shape[1]),
+            height=int(image.pixels.shape[0]))
     msg.method = config.method
     msg.window_size = int(config.window_size)
     msg.min_disparity = int(config.min_disparity)
     msg.disparity_range = int(config.disparity_range)
     return msg
+
+
+def stereo_matches_image(msg: StereoMatches) -> RectifiedImage | None:
+    """Return the left rectified image that came with the matches, or None when none did.
+
+    Raises:
+        ImageEncodingError: An image that is not mono8 or mono16, whose buffer does not match
+            its size, or whose left_rectified_roi does not give its size or does not lie
+            inside the rectified image (left_info's width and height).
+    """
+    image = msg.left_rectified
+    if image.width == 0 and image.height == 0 and not image.data:
+        return None
+    if image.encoding not in ('mono8', 'mono16'):
+        raise ImageEncodingError(f'left_rectified: encoding {image.encoding!r}, need mono8 or '
+                                 'mono16 (the matched grey image)')
+    roi = msg.left_rectified_roi
+    if (roi.width, roi.height) != (image.width, image.height):
+        raise ImageEncodingError(
+            f'left_rectified is {image.width}x{image.height} but left_rectified_roi says '
+            f'{roi.width}x{roi.height}')
+    if (roi.x_offset + roi.width > msg.left_info.width
+            or roi.y_offset + roi.height > msg.left_info.height):
+        raise ImageEncodingError(
+            f'left_rectified_roi {roi.width}x{roi.height} at ({roi.x_offset}, {roi.y_offset}) '
+            f'reaches past the {msg.left_info.width}x{msg.left_info.height} rectified image')
+    try:
+        pixels = image_to_array(image)
+    except ImageEncodingError as error:
+        raise ImageEncodingError(f'left_rectified: {error}') from None
+    return RectifiedImage(pixels, int(roi.x_offset), int(roi.y_offset),
+                          max(1, int(msg.window_size)))
 
 
 def disparity_image_message(disparity_map: DisparityMap, rectified: StereoCalibration,

@@ -1,0 +1,212 @@
+"""The top face's outline from the left rectified image (step 1, after correlation_area.py).
+
+The matches alone place the top face's rim only to within a correlation window: a window that
+straddles the rim takes the disparity of the side with more texture, so the face grows by up to
+half a window where the table is plainer ("fattening") and shrinks where the top is plainer, and
+a plain top is matched only along its rim. A face 20-50 px across then has its centre a few
+pixels off, several millimetres. The image itself shows the rim to a pixel: the edge between the
+top and what lies beyond it. So, when the matches come with the rectified image:
+
+1. The face's outline from its matches: the convex hull of the largest connected piece of them
+   (the objects' tops are convex, and so are their images).
+2. Each point of that outline moves along its normal to the strongest intensity edge across it,
+   within the reach of fattening inward (the window's radius and a pixel) and OUTWARD_PX
+   outward, the edges weighted by a Gaussian of the move (sigma: that inward reach) so that
+   where the matches already found the rim a texture edge nearby does not pull it away; the
+   moves are median-filtered along the outline, so that the texture's own edges cannot pull
+   single points away either.
+3. The face is the convex hull of the moved outline. Its pixels, on the matches' grid, are cut
+   with the top face's plane (the measured surface raised by the top height) along their rays:
+   points spread evenly over the whole face, each weighted by the patch of the face it sees.
+
+Where the outline cannot be taken (no image, a face at the image's or the crop's edge, a
+degenerate outline), the area stays the matches' own. ROS-free: numpy, scipy and OpenCV.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+from scipy import ndimage
+
+from stereo_fuzzy_perception.core.best_point.correlation_area import OUTLINE_IMAGE, CorrelationArea
+from stereo_fuzzy_perception.core.best_point.object_segmentation import grid_step, image_regions
+from stereo_fuzzy_perception.core.camera_model import CameraCalibration
+from stereo_fuzzy_perception.core.matched_points import RectifiedImage
+
+OUTWARD_PX = 3.0
+"""How far outward an outline point may move [px]: a face that the matches cut short at a plain
+rim (the window took the table's disparity there)."""
+
+OFFSET_STEP_PX = 0.5
+"""Spacing of the positions tried along each normal [px]."""
+
+SMOOTHING_SIGMA_PX = 1.0
+"""Gaussian smoothing of the image before its gradient [px]: sensor noise, not the rim."""
+
+NORMAL_SIGMA_PX = 2.0
+"""Smoothing of the outline's mask from which its normals are taken [px]."""
+
+MEDIAN_POINTS = 9
+"""Outline points over which the moves are median-filtered."""
+
+SUBPIXEL = 4
+"""Bits of sub-pixel precision when the moved outline is filled (OpenCV's `shift`)."""
+
+
+def face_from_image(area: CorrelationArea, image: RectifiedImage, left: CameraCalibration,
+                    right: CameraCalibration, world_from_camera: np.ndarray,
+                    min_points: int) -> CorrelationArea | None:
+    """Return the correlation area with its outline taken from the image, or None.
+
+    Args:
+        area: The matches' correlation area, status ok.
+        image: The part of the left rectified image the matches were found in.
+        left: Rectified calibration of the left image.
+        right: Rectified calibration of the right image.
+        world_from_camera: 4x4 pose of the left optical frame in `world`.
+        min_points: Fewest points of a face (AreaConfig.min_points).
+
+    Returns:
+        The area whose points are the outlined face's pixels on the matches' grid, cut with
+        the top face's plane; None when the outline cannot be taken from this image (the area
+        of the matches stands then).
+    """
+    step = grid_step(area.u_left, area.v_left)
+    radius = max(1, image.window_size // 2)
+    inward = radius + 1.0
+    outline = _hull_outline(area.u_left, area.v_left, step)
+    if outline is None:
+        return None
+    margin = int(np.ceil(max(inward, OUTWARD_PX) + 3.0 * SMOOTHING_SIGMA_PX + 2.0))
+    low = np.floor(outline.min(axis=0)).astype(int) - margin
+    high = np.ceil(outline.max(axis=0)).astype(int) + margin
+    pixels = image.pixels
+    origin = np.array([image.x, image.y])
+    if np.any(low < origin) or np.any(high >= origin + pixels.shape[::-1]):
+        return None  # the face reaches past the image sent: the matches' outline stands
+    crop = pixels[low[1] - image.y:high[1] - image.y + 1,
+                  low[0] - image.x:high[0] - image.x + 1].astype(np.float32)
+    moved = _snapped(crop, outline - low, inward)
+    if moved is None:
+        return None
+    columns, rows = _filled_on_grid(moved + low, step, area.u_left[0], area.v_left[0])
+    if len(columns) < min_points:
+        return None
+    return _on_top_plane(area, columns, rows, left, right, world_from_camera)
+
+
+def _hull_outline(u: np.ndarray, v: np.ndarray, step: float) -> np.ndarray | None:
+    """Return the convex hull (K, 2) of the face's matches [px], or None when flat.
+
+    Only the largest connected piece of the matches counts: a stray match of the band's
+    height away from the face would otherwise widen the hull all the way to it. Each match
+    stands for its grid cell less the pixel it sits on: at a point stride of one the hull of
+    the matches, at a coarser one the rim lies on average that far beyond the outer matches.
+    """
+    labels, count = image_regions(u, v, np.ones(len(u), dtype=bool), step)
+    if count > 1:
+        largest = np.argmax(np.bincount(labels)[1:]) + 1
+        u, v = u[labels == largest], v[labels == largest]
+    half = 0.5 * (step - 1.0)
+    # the corners of the cells at the centres' hull vertices only: the same hull
+    centres = cv2.convexHull(np.column_stack([u, v]).astype(np.float32)).reshape(-1, 2)
+    corners = np.concatenate([centres + np.array([du, dv], dtype=np.float32)
+                              for du in (-half, half) for dv in (-half, half)])
+    hull = cv2.convexHull(corners).reshape(-1, 2)
+    if len(hull) < 3 or cv2.contourArea(hull) < 4.0:
+        return None
+    return hull.astype(float)
+
+
+def _snapped(crop: np.ndarray, hull: np.ndarray, inward: float) -> np.ndarray | None:
+    """Return the outline (K, 2) moved to the image's edges, in crop pixels, or None."""
+    mask = np.zeros(crop.shape, np.uint8)
+    cv2.fillConvexPoly(mask, np.round(hull * (1 << SUBPIXEL)).astype(np.int32), 1,
+                       shift=SUBPIXEL)
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    if not contours:
+        return None
+    contour = max(contours, key=len).reshape(-1, 2).astype(float)
+    if len(contour) < MEDIAN_POINTS:
+        return None
+    blurred = cv2.GaussianBlur(mask.astype(np.float32), (0, 0), NORMAL_SIGMA_PX)
+    columns, rows = contour[:, 0].astype(int), contour[:, 1].astype(int)
+    normals = -np.column_stack([cv2.Sobel(blurred, cv2.CV_32F, 1, 0, ksize=3)[rows, columns],
+                                cv2.Sobel(blurred, cv2.CV_32F, 0, 1, ksize=3)[rows, columns]])
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    if np.any(length == 0.0):
+        return None
+    normals /= length
+    smooth = cv2.GaussianBlur(crop, (0, 0), SMOOTHING_SIGMA_PX)
+    gradient_u = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3)
+    gradient_v = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3)
+    offsets = np.arange(-inward, OUTWARD_PX + 1e-9, OFFSET_STEP_PX)
+    tried = contour[None, :, :] + offsets[:, None, None] * normals[None, :, :]
+    where = [tried[..., 1], tried[..., 0]]
+    across = np.abs(ndimage.map_coordinates(gradient_u, where, order=1) * normals[:, 0]
+                    + ndimage.map_coordinates(gradient_v, where, order=1) * normals[:, 1])
+    # A weak preference for small moves: where the matches already found the rim, a texture
+    # edge a few pixels inside the face must be much stronger to pull the outline to it.
+    across *= np.exp(-0.5 * (offsets / inward) ** 2)[:, None]
+    moves = ndimage.median_filter(offsets[np.argmax(across, axis=0)], size=MEDIAN_POINTS,
+                                  mode='wrap')
+    moved: np.ndarray = contour + moves[:, None] * normals
+    return moved
+
+
+def _filled_on_grid(outline: np.ndarray, step: float, u_grid: float, v_grid: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Return the grid pixels (columns, rows) inside the convex hull of outline [px].
+
+    The grid is the matches' (spacing step through (u_grid, v_grid)).
+    """
+    hull = cv2.convexHull(outline.astype(np.float32)).reshape(-1, 2).astype(float)
+    low = np.floor(hull.min(axis=0)).astype(int) - 1
+    high = np.ceil(hull.max(axis=0)).astype(int) + 1
+    mask = np.zeros((high[1] - low[1] + 1, high[0] - low[0] + 1), np.uint8)
+    cv2.fillConvexPoly(mask, np.round((hull - low) * (1 << SUBPIXEL)).astype(np.int32), 1,
+                       shift=SUBPIXEL)
+    rows, columns = np.nonzero(mask)
+    columns, rows = columns + low[0], rows + low[1]
+    spacing = max(1, int(round(step)))
+    on_grid = (((columns - int(round(u_grid))) % spacing == 0)
+               & ((rows - int(round(v_grid))) % spacing == 0))
+    return columns[on_grid].astype(float), rows[on_grid].astype(float)
+
+
+def _on_top_plane(area: CorrelationArea, columns: np.ndarray, rows: np.ndarray,
+                  left: CameraCalibration, right: CameraCalibration,
+                  world_from_camera: np.ndarray) -> CorrelationArea | None:
+    """Return the area whose points are the pixels' rays cut with the top face's plane.
+
+    A pixel's ray in the rectified frame is K^-1 (u, v, 1), depth 1; cut with the plane
+    n . p = level at depth s = (level - n . C) / (n . D). The patch of the plane one pixel
+    sees is proportional to 1 / |n . D|^3 (central projection onto a plane), its weight.
+    """
+    pose = np.asarray(world_from_camera, dtype=float)
+    rectification = np.asarray(left.R, dtype=float).reshape(3, 3)
+    intrinsic = np.asarray(left.P, dtype=float)[:3, :3]
+    rays_rectified = np.linalg.inv(intrinsic) @ np.vstack([columns, rows, np.ones_like(rows)])
+    rays = pose[:3, :3] @ rectification.T @ rays_rectified  # (3, M) in world
+    surface = area.surface
+    normal = surface.normal
+    level = area.top_height + surface.offset_m * float(normal[2])
+    centre = pose[:3, 3]
+    facing = normal @ rays
+    with np.errstate(divide='ignore', invalid='ignore'):
+        depth = (level - float(normal @ centre)) / facing
+    if not np.all(np.isfinite(depth)) or np.any(depth <= 0.0):
+        return None  # a ray that never meets the face's plane in front of the camera
+    world = centre[:, None] + rays * depth
+    baseline_term = -float(np.asarray(right.P, dtype=float)[0, 3])  # fx * B
+    shift = float(left.P[0, 2] - right.P[0, 2])
+    u_right = columns - shift - baseline_term / depth
+    weight = np.abs(facing) ** -3.0
+    weight /= weight.mean()
+    score = np.full(len(columns), float(np.median(area.score)))
+    return dataclasses.replace(area, xyz_world=np.ascontiguousarray(world.T), u_left=columns,
+                               v_left=rows, u_right=u_right, score=score, weight=weight,
+                               points_used=len(columns), outline=OUTLINE_IMAGE)

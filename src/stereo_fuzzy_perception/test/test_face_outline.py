@@ -1,0 +1,123 @@
+"""The top face's outline from the left rectified image (face_outline.py), on ray-cast grids."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from grid_scenes import Box, camera_distance, grid_matches
+from stereo_fuzzy_perception.core.best_point.correlation_area import (
+    OUTLINE_IMAGE,
+    OUTLINE_MATCHES,
+    AreaConfig,
+    find_correlation_area,
+)
+from stereo_fuzzy_perception.core.best_point.face_outline import _on_top_plane, face_from_image
+from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser
+from stereo_fuzzy_perception.core.matched_points import RectifiedImage
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+
+# 0.6 m from the surface along the optical axis, looking down at 30 degrees
+RIG = StereoRig(baseline_m=0.08, alpha_deg=30.0, x0_m=0.2, y0_m=-0.2,
+                z0_m=0.6 * math.cos(math.radians(30.0)), vergence_deg=2.0)
+BOX = Box((0.2, 0.15), 0.04, 0.03)
+DISC = Box((0.18, 0.12), 0.05, 0.005, round=True)
+DEFAULTS = AreaConfig()
+IMAGE_OFF = AreaConfig(outline_from_image=False)
+
+
+def error_mm(points, left, right, box, config=DEFAULTS, selector='centroid'):
+    chooser = dataclasses.replace(BestPointChooser.create(selector, config, RIG),
+                                  world_from_camera=RIG.world_from_left_camera())
+    decision = chooser.decide(points, left, right)
+    assert decision.best_point_world is not None, decision.reason
+    target = np.array([*box.centre_xy, box.height])
+    return 1000.0 * float(np.linalg.norm(decision.best_point_world - target)), decision
+
+
+def pixel_floor_mm(box, stride):
+    """Return the error [mm] of the centre of the grid pixels that do see the top: what any
+    outline on this pixel grid is held to."""
+    points, left, right = grid_matches(RIG, box, 0.0, stride, image=True)
+    pose = RIG.world_from_left_camera()
+    area = find_correlation_area(points, pose, DEFAULTS, float(left.P[0, 2] - right.P[0, 2]))
+    world = points.xyz.astype(float) @ pose[:3, :3].T + pose[:3, 3]
+    on_top = world[:, 2] > 0.5 * box.height
+    floor = _on_top_plane(area, points.u_left[on_top].astype(float),
+                          points.v_left[on_top].astype(float), left, right, pose)
+    weight = floor.point_weights()
+    centre = (floor.xyz_world * weight[:, None]).sum(axis=0) / weight.sum()
+    return 1000.0 * float(np.linalg.norm(centre - [*box.centre_xy, box.height]))
+
+
+@pytest.mark.parametrize('box', [BOX, DISC], ids=['box', 'disc'])
+@pytest.mark.parametrize('stride', [1, 3])
+def test_the_image_puts_a_fattened_face_back_in_place(box, stride):
+    points, left, right = grid_matches(RIG, box, 0.05, stride, fatten_px=4, image=True)
+    fattened, _ = error_mm(points, left, right, box, IMAGE_OFF)
+    outlined, decision = error_mm(points, left, right, box)
+    floor = pixel_floor_mm(box, stride)
+    # within half a pixel of the floor (a pixel at the top's depth: about 1 mm here)
+    left_calibration = grid_matches(RIG, None, 0.0, 8)[1]
+    half_pixel_mm = 500.0 * camera_distance(RIG) / float(left_calibration.P[0, 0])
+    assert outlined - floor < half_pixel_mm < fattened - floor, (
+        outlined, floor, fattened, half_pixel_mm)
+
+
+def test_a_stray_match_at_the_tops_height_does_not_widen_the_outline():
+    points, left, right = grid_matches(RIG, BOX, 0.05, 1, fatten_px=4, image=True)
+    clean, _ = error_mm(points, left, right, BOX)
+    # one match of the top's disparity 30 px right of the face: a mismatch on the table
+    top = np.flatnonzero(points.xyz[:, 2] == points.xyz[:, 2].min())[0]
+    stray = np.concatenate([np.arange(len(points)), [top]])
+    spoiled = points.subset(stray)
+    spoiled.u_left = spoiled.u_left.copy()
+    spoiled.u_right = spoiled.u_right.copy()
+    spoiled.u_left[-1] += 30.0
+    spoiled.u_right[-1] += 30.0
+    spoiled.xyz = spoiled.xyz.copy()
+    spoiled.xyz[-1] *= 1.0  # the same depth: the ray moves with the column below
+    depth = float(spoiled.xyz[-1, 2])
+    focal, cx = float(left.P[0, 0]), float(left.P[0, 2])
+    rectified = np.asarray(left.R) @ spoiled.xyz[-1]
+    rectified[0] = (spoiled.u_left[-1] - cx) / focal * rectified[2]
+    spoiled.xyz[-1] = np.asarray(left.R).T @ rectified
+    assert depth > 0.0
+    with_stray, decision = error_mm(spoiled, left, right, BOX)
+    assert decision.points_used > 0
+    assert with_stray == pytest.approx(clean, abs=0.05)
+
+
+def test_a_face_at_the_edge_of_the_image_sent_keeps_the_matches_outline():
+    points, left, right = grid_matches(RIG, BOX, 0.05, 1, fatten_px=4, image=True)
+    pose = RIG.world_from_left_camera()
+    area = find_correlation_area(points, pose, DEFAULTS, float(left.P[0, 2] - right.P[0, 2]))
+    assert area.ok and area.outline == OUTLINE_MATCHES
+    whole = points.left_image
+    assert face_from_image(area, whole, left, right, pose, DEFAULTS.min_points) is not None
+    # the image sent ends two pixels right of the face's matches
+    last = int(area.u_left.max()) + 2
+    cut = RectifiedImage(whole.pixels[:, :last], window_size=whole.window_size)
+    assert face_from_image(area, cut, left, right, pose, DEFAULTS.min_points) is None
+    _, decision = error_mm(dataclasses.replace(points, left_image=cut), left, right, BOX)
+    _, without = error_mm(points, left, right, BOX, IMAGE_OFF)
+    np.testing.assert_array_equal(decision.best_point_world, without.best_point_world)
+
+
+def test_the_outlined_area_is_the_faces_pixels_on_the_top_plane():
+    points, left, right = grid_matches(RIG, BOX, 0.05, 3, fatten_px=4, image=True)
+    pose = RIG.world_from_left_camera()
+    area = find_correlation_area(points, pose, DEFAULTS, float(left.P[0, 2] - right.P[0, 2]))
+    outlined = face_from_image(area, points.left_image, left, right, pose, DEFAULTS.min_points)
+    assert outlined is not None and outlined.outline == OUTLINE_IMAGE
+    # on the matches' grid, every point at the top's height above the measured surface
+    assert np.all(outlined.u_left % 3 == 0) and np.all(outlined.v_left % 3 == 0)
+    np.testing.assert_allclose(area.surface.heights(outlined.xyz_world.T), area.top_height,
+                               atol=1e-9)
+    # projected back, each point lands on its own pixel in both rectified images
+    camera = (outlined.xyz_world - pose[:3, 3]) @ pose[:3, :3]
+    rectified = camera @ np.asarray(left.R).T  # both projections act on the left's frame
+    for calibration, columns in ((left, outlined.u_left), (right, outlined.u_right)):
+        pixel = np.c_[rectified, np.ones(len(rectified))] @ np.asarray(calibration.P).T
+        np.testing.assert_allclose(pixel[:, 0] / pixel[:, 2], columns, atol=1e-6)
+        np.testing.assert_allclose(pixel[:, 1] / pixel[:, 2], outlined.v_left, atol=1e-6)
