@@ -1,5 +1,6 @@
 """The correlation area, its border points and four areas (steps 1-3), on synthetic points."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -132,16 +133,30 @@ def test_no_points_and_too_few_points_have_reasons():
     assert area.status == TOO_FEW_POINTS and 'min_points=20' in area.reason
 
 
-def test_a_top_face_scattered_beyond_max_top_spread_is_uncertain_not_taken():
-    # 0.8 m away, 0.5 px of disparity noise: the face's heights scatter by millimetres
+def test_a_top_face_scattered_beyond_its_noise_is_uncertain_not_taken():
     box = Box((0.2, 0.15), 0.05, 0.03)
+    # 0.8 m away, 0.5 px of disparity noise everywhere: the face's heights scatter by
+    # millimetres, all of it the points' own noise: one level face, taken
     noisy = area_in(FAR_RIG, box, 0.5, 1, seed=3)
-    assert noisy.status == UNCERTAIN_TOP, noisy.reason
-    assert 'max_top_spread_m=0.002' in noisy.reason and 'not measured well enough' in noisy.reason
-    loose = area_in(FAR_RIG, box, 0.5, 1, seed=3, config=AreaConfig(max_top_spread_m=0.0))
+    assert noisy.status == STATUS_OK, noisy.reason
+    assert 1000.0 * float(np.std(noisy.surface.heights(noisy.xyz_world.T))) > 2.0
+    # the same face, its matches 4 mm off up and down (matched worse than the table): refused
+    points, left, right = grid_matches(FAR_RIG, box, 0.05, 1, seed=3)
+    world = points.xyz @ FAR_RIG.world_from_left_camera()[:3, :3].T
+    on_face = world[:, 2] + FAR_RIG.world_from_left_camera()[2, 3] > 0.02
+    rng = np.random.default_rng(4)
+    world[on_face, 2] += rng.normal(0.0, 0.004, int(on_face.sum()))
+    spoiled = dataclasses.replace(
+        points, xyz=world @ FAR_RIG.world_from_left_camera()[:3, :3])
+    shift = float(left.P[0, 2] - right.P[0, 2])
+    refused = find_correlation_area(spoiled, FAR_RIG.world_from_left_camera(), DEFAULTS, shift)
+    assert refused.status == UNCERTAIN_TOP, refused.reason
+    assert "beyond what its points' noise" in refused.reason
+    assert 'max_top_spread_m=0.002' in refused.reason
+    assert 'not measured well enough' in refused.reason
+    loose = find_correlation_area(spoiled, FAR_RIG.world_from_left_camera(),
+                                  AreaConfig(max_top_spread_m=0.0), shift)
     assert loose.status == STATUS_OK, loose.reason
-    # the same face measured well is taken
-    assert area_in(FAR_RIG, box, 0.05, 1, seed=3).status == STATUS_OK
 
 
 def test_a_top_face_in_pieces_is_uncertain_not_taken():

@@ -61,9 +61,10 @@ class FuzzyBestPointSettings:
         _AREA.max_object_height_m, 'A top face higher than this above the work surface is no '
         'object: refused, not taken [m]', 0.001, 10.0)
     max_top_spread_m: float = parameter(
-        _AREA.max_top_spread_m, 'A top face whose heights scatter more than this (standard '
-        'deviation) is not measured well enough for a point: refused as uncertain_top, not '
-        'taken [m]; 0 = no limit', 0.0, 1.0)
+        _AREA.max_top_spread_m, 'A top face whose heights scatter more than this beyond what '
+        "its points' noise explains (standard deviations, subtracted in squares) is not "
+        'measured well enough for a point: refused as uncertain_top, not taken [m]; 0 = no '
+        'limit', 0.0, 1.0)
     min_top_fill: float = parameter(
         _AREA.min_top_fill, "Share of the top face's outline in the left image (the convex hull "
         'of its matches) that must hold matches; less is a face in pieces: refused as '

@@ -105,11 +105,12 @@ class AreaConfig:
         max_object_height_m: A top face higher than this above the work surface is no
             object's [m]: the objects stand at most 80 mm high; a higher face is a blob of
             mismatches (repeated texture matched a period off) floating over the scene.
-        max_top_spread_m: A top face whose heights scatter more than this (standard
-            deviation) is not measured well enough for a point within millimetres [m]: a level
-            face scatters by its points' noise only, and side-wall or table points in the band
-            add to it. Measured on the randomized training scenes, larger errors come almost
-            only from faces beyond it; 0 turns the test off.
+        max_top_spread_m: A top face whose heights scatter more than this beyond what its
+            points' noise explains (sqrt(std^2 - sigma_h^2), sigma_h their median height
+            noise) is not measured well enough for a point within millimetres [m]: a level
+            face scatters by its points' noise only, and side-wall, table or badly matched
+            points in the band add to it. Measured on the randomized training scenes, larger
+            errors come almost only from faces beyond it; 0 turns the test off.
         min_top_fill: Share of the top face's outline in the image (the convex hull of its
             matches) that holds matches [-]: a face in pieces (arcs of a rim, bits of a side
             wall, a low-texture top seen only at its edges) gives a centre that is not the
@@ -398,12 +399,17 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                                   f'(max_object_across_m={config.max_object_across_m:g})',
                        surface, regions, found.median_sigmas)
     face_heights = heights[band]
+    # The scatter the points' own noise does not explain: a far rig's face scatters by its
+    # noise and is still one level face; side-wall, table or badly matched points add to it.
     spread = float(np.std(face_heights))
-    if config.max_top_spread_m and spread > config.max_top_spread_m:
-        return refused(UNCERTAIN_TOP, f"the top face's heights scatter by {1000.0 * spread:.1f} "
-                                      'mm (standard deviation), more than max_top_spread_m='
-                                      f'{config.max_top_spread_m:g}: not measured well enough '
-                                      'for a point', surface, regions, found.median_sigmas)
+    noise = float(np.median(sigma[band]))
+    excess = math.sqrt(max(0.0, spread ** 2 - noise ** 2))
+    if config.max_top_spread_m and excess > config.max_top_spread_m:
+        why = (f"the top face's heights scatter by {1000.0 * spread:.1f} mm (standard "
+               f"deviation), {1000.0 * excess:.1f} mm beyond what its points' noise "
+               f'({1000.0 * noise:.1f} mm) explains, more than max_top_spread_m='
+               f'{config.max_top_spread_m:g}: not measured well enough for a point')
+        return refused(UNCERTAIN_TOP, why, surface, regions, found.median_sigmas)
     fill = hull_fill(u_left[band], v_left[band], step)
     if fill < config.min_top_fill:
         return refused(UNCERTAIN_TOP, f"the top face's matches fill {100.0 * fill:.0f} % of its "
