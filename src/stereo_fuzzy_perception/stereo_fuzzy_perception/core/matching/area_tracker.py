@@ -11,6 +11,12 @@ pair after a failed region waits up to `decision_wait_s` for the decision on the
 on the whole image too: after a scene change, one pair is matched twice instead of every pair
 until that decision arrives.
 
+With `detect_scene_change`, each pair's block means (scene_change.py) are compared before
+anything is matched: a region whose blocks changed since the previous pair beyond
+`change_share` is not tried (the pair goes to the whole image at once, and the area is
+forgotten as after a failed region), and a periodic whole-image pair whose image did not change
+outside the region since the last whole-image pair is matched in the region.
+
 Thread-safe: decisions arrive on one thread, pairs are matched on another. ROS-free.
 """
 
@@ -18,6 +24,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +36,11 @@ from stereo_fuzzy_perception.core.matching.area_search import (
     TrackedArea,
     search_region,
 )
+from stereo_fuzzy_perception.core.matching.scene_change import (
+    Box,
+    changed_outside,
+    changed_share_inside,
+)
 
 # Why a pair was matched on the whole image.
 TRACKING_OFF = 'tracking_off'
@@ -36,7 +48,8 @@ NO_AREA = 'no_area'
 STALE_AREA = 'stale_area'
 PERIODIC = 'periodic'
 NO_REGION = 'no_region'
-FULL_FRAME_REASONS = (TRACKING_OFF, NO_AREA, STALE_AREA, PERIODIC, NO_REGION)
+SCENE_CHANGED = 'scene_changed'
+FULL_FRAME_REASONS = (TRACKING_OFF, NO_AREA, STALE_AREA, PERIODIC, NO_REGION, SCENE_CHANGED)
 
 
 @dataclass(frozen=True)
@@ -51,6 +64,10 @@ class TrackingConfig:
         margin_m: Smallest region margin on each side [m].
         decision_wait_s: Longest wait for the decision on a pair whose region failed before
             the next pair is planned [s]; 0 does not wait.
+        detect_scene_change: Compare the pairs' block means before planning (see above).
+        change_grey_levels: Change of a block's mean that counts as a change [grey levels].
+        change_share: Share of the region's blocks changed since the previous pair above
+            which the region is not tried [-].
     """
 
     enabled: bool = True
@@ -59,14 +76,22 @@ class TrackingConfig:
     margin_object_sizes: float = 1.0
     margin_m: float = 0.02
     decision_wait_s: float = 0.015
+    detect_scene_change: bool = True
+    change_grey_levels: float = 8.0
+    change_share: float = 0.2
 
 
 @dataclass(frozen=True)
 class SearchPlan:
-    """Where one pair is matched: in `region`, or on the whole image for `reason`."""
+    """Where one pair is matched: in `region`, or on the whole image for `reason`.
+
+    `periodic_skipped`: the pair was due on the whole image (`full_frame_every`) but is matched
+    in the region, its image unchanged outside it since the last whole-image pair.
+    """
 
     region: SearchRegion | None
     reason: str = ''
+    periodic_skipped: bool = False
 
 
 class AreaTracker:
@@ -80,6 +105,14 @@ class AreaTracker:
         self._since_full = 0
         self._newest_decision_s = -math.inf  # stamp of the newest pair decided [s]
         self._awaited_s: float | None = None  # the failed region's pair stamp [s]
+        # decisions on pairs older than the last failed region's are not tracked: they would
+        # bring back the area that failed [s]
+        self._failed_s = -math.inf
+        # block means (scene_change.block_means) of the pair planned last, of the one before
+        # it, and of the last pair matched on the whole image
+        self._planned_blocks: np.ndarray | None = None
+        self._previous_blocks: np.ndarray | None = None
+        self._whole_blocks: np.ndarray | None = None
         self.last_problem = ''
 
     def observe(self, area: TrackedArea | None, stamp_s: float | None = None) -> None:
@@ -93,7 +126,9 @@ class AreaTracker:
         if area is not None and area.problem() is not None:
             area = None
         with self._lock:
-            if area is None or self._area is None or area.stamp_s >= self._area.stamp_s:
+            stale = area is not None and area.stamp_s < self._failed_s
+            if not stale and (area is None or self._area is None
+                              or area.stamp_s >= self._area.stamp_s):
                 self._area = area
             if decided_s is not None:
                 self._newest_decision_s = max(self._newest_decision_s, decided_s)
@@ -111,7 +146,10 @@ class AreaTracker:
             self._area = None
             self.last_problem = problem
             self._awaited_s = stamp_s
+            if stamp_s is not None:
+                self._failed_s = max(self._failed_s, stamp_s)
             self._since_full = 0  # the pair is matched on the whole image
+            self._whole_blocks = self._planned_blocks
 
     def wait_for_decision(self) -> bool | None:
         """Wait up to `decision_wait_s` for the decision on the last failed region's pair.
@@ -129,7 +167,9 @@ class AreaTracker:
                                           timeout=self.config.decision_wait_s)
 
     def plan(self, stamp_s: float, calibration: StereoCalibration,
-             world_from_camera: np.ndarray | None, full_range: tuple[int, int]) -> SearchPlan:
+             world_from_camera: np.ndarray | None, full_range: tuple[int, int],
+             blocks: np.ndarray | None = None,
+             raw_box: Callable[[tuple[int, int, int, int]], Box] | None = None) -> SearchPlan:
         """Return where the pair stamped `stamp_s` [s] is matched.
 
         Args:
@@ -137,18 +177,26 @@ class AreaTracker:
             calibration: Its (rectified) calibration.
             world_from_camera: Left optical frame in world, or None when unknown.
             full_range: (min_disparity, disparity_range) of the whole-image search [px].
+            blocks: The pair's block means (scene_change.block_means of the raw left image),
+                or None: no scene-change detection for this pair.
+            raw_box: The box (x0, y0, x1, y1) of the raw left image a rectified region
+                (x, y, width, height) is made from [px] (needed with `blocks`).
         """
         config = self.config
         with self._lock:
             area = self._area
             periodic = self._since_full + 1 >= config.full_frame_every
+            previous = self._previous_blocks
+            whole = self._whole_blocks
+            self._planned_blocks = self._previous_blocks = blocks
         if not config.enabled or world_from_camera is None:
             return self._full(TRACKING_OFF)
         if area is None:
             return self._full(NO_AREA)
         if not 0.0 <= stamp_s - area.stamp_s <= config.max_age_s:
             return self._full(STALE_AREA)
-        if periodic:
+        detect = config.detect_scene_change and blocks is not None and raw_box is not None
+        if periodic and not detect:
             return self._full(PERIODIC)
         try:
             region = search_region(area, calibration, world_from_camera, full_range,
@@ -157,11 +205,23 @@ class AreaTracker:
             with self._lock:
                 self.last_problem = str(error)
             return self._full(NO_REGION)
+        if detect and blocks is not None and raw_box is not None:
+            box = raw_box(region.roi)
+            if periodic and changed_outside(blocks, whole, box, config.change_grey_levels):
+                return self._full(PERIODIC)
+            share = changed_share_inside(blocks, previous, box, config.change_grey_levels)
+            if share > config.change_share:
+                # as after a failed region: forget the area, the next pair waits for this
+                # pair's decision
+                self.region_failed(f'{share:.0%} of the region changed since the previous pair',
+                                   stamp_s)
+                return SearchPlan(None, SCENE_CHANGED)
         with self._lock:
-            self._since_full += 1
-        return SearchPlan(region)
+            self._since_full = 0 if periodic else self._since_full + 1
+        return SearchPlan(region, periodic_skipped=periodic)
 
     def _full(self, reason: str) -> SearchPlan:
         with self._lock:
             self._since_full = 0
+            self._whole_blocks = self._planned_blocks
         return SearchPlan(None, reason)
