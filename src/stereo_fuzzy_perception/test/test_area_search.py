@@ -327,5 +327,15 @@ def test_the_periodic_whole_image_is_skipped_while_nothing_changed_outside_the_r
     elsewhere[:24, :24] = 255 - elsewhere[:24, :24]  # something came in, far from the box
     assert plan(0.3, block_means(elsewhere)) == (False, PERIODIC, False)
     assert plan(0.4, block_means(elsewhere)) == (True, '', True)  # compared with 0.3 now
+    region = tracker.plan(0.41, calibration, pose, FULL_RANGE, block_means(elsewhere),
+                          whole_image_box).region
+    assert region is not None
+    x, y, width, height = region.roi
+    inside = elsewhere.copy()
+    inside[y:y + height, x:x + width] = 255 - inside[y:y + height, x:x + width]
+    # due on the whole image anyway, but the region changed: its area is forgotten too
+    assert plan(0.42, block_means(inside)) == (False, SCENE_CHANGED, False)
+    assert plan(0.43, block_means(inside)) == (False, NO_AREA, False)
+    tracker.observe(box_area(0.42))
     tracker.config = TrackingConfig(full_frame_every=1, detect_scene_change=False)
     assert plan(0.5, blocks) == (False, PERIODIC, False)

@@ -207,15 +207,15 @@ class AreaTracker:
             return self._full(NO_REGION)
         if detect and blocks is not None and raw_box is not None:
             box = raw_box(region.roi)
-            if periodic and changed_outside(blocks, whole, box, config.change_grey_levels):
-                return self._full(PERIODIC)
             share = changed_share_inside(blocks, previous, box, config.change_grey_levels)
             if share > config.change_share:
                 # as after a failed region: forget the area, the next pair waits for this
-                # pair's decision
+                # pair's decision (also when the pair was due on the whole image anyway)
                 self.region_failed(f'{share:.0%} of the region changed since the previous pair',
                                    stamp_s)
                 return SearchPlan(None, SCENE_CHANGED)
+            if periodic and changed_outside(blocks, whole, box, config.change_grey_levels):
+                return self._full(PERIODIC)
         with self._lock:
             self._since_full = 0 if periodic else self._since_full + 1
         return SearchPlan(region, periodic_skipped=periodic)
