@@ -11,7 +11,13 @@ rig, the demo's point stride), in one run:
    in it (a static scene) and decided again. A region whose check fails is matched again on
    the whole image, as correlation_node does (counted);
 3. wrong area: the region of the previous scene (another object elsewhere) on this pair: the
-   check must send it to the whole image, or the decision must be as good.
+   check must send it to the whole image, or the decision must be as good;
+4. found in the matches: the region area_search.region_from_matches finds in the pair's own
+   whole-image matches, with the previous scene's region as the surface reference (what
+   correlation_node tracks after a scene change until the new object's first decision); the
+   same pair is matched in it and decided again (a failed check: the whole image's decision).
+   The scene change itself: whether the previous scene's region changed in the block means
+   (scene_change.py, correlation_node's defaults) between the previous scene's pair and this one.
 
 Success = best point within --tolerance-mm of the top face's centre (as table1_benchmark).
 Stage times are medians of the calls, against StereoBM (block 9, the whole-image disparities)
@@ -60,9 +66,14 @@ from stereo_fuzzy_perception.core.matching.area_search import (  # noqa: E402
     AreaProjectionError,
     SearchRegion,
     TrackedArea,
+    region_from_matches,
     search_region,
 )
 from stereo_fuzzy_perception.core.matching.area_tracker import TrackingConfig  # noqa: E402
+from stereo_fuzzy_perception.core.matching.scene_change import (  # noqa: E402
+    block_means,
+    changed_share_inside,
+)
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchResult  # noqa: E402
 from stereo_fuzzy_perception.simulation.rendered_scenes import RenderedSceneSource  # noqa: E402
 from stereo_fuzzy_perception.simulation.synthetic_scenes import OBJECT_TYPES  # noqa: E402
@@ -123,6 +134,7 @@ def main() -> None:
         bm = cv2.StereoBM_create(numDisparities=16 * -(-full_range[1] // 16), blockSize=9)
         bm.setMinDisparity(full_range[0])
         previous: SearchRegion | None = None
+        previous_blocks: np.ndarray | None = None
         for kind in OBJECT_TYPES:
             for seed in seeds[kind]:
                 frame = source.render(seed, kind)
@@ -160,7 +172,26 @@ def main() -> None:
                                            wrong.rectified.right)
                     row.update(wrong_mm=error_mm(other, target),
                                wrong_problem=wrong.region_problem)
+                    blocks = block_means(left)
+                    box = pipeline.rectifier.raw_box(frame.calibration, previous.roi)
+                    row['wrong_changed'] = changed_share_inside(
+                        blocks, previous_blocks, box,
+                        tracking.change_grey_levels) > tracking.change_share
+                    found_region = region_from_matches(
+                        full.disparity_map, previous, full.rectified, stride, full_range,
+                        tracking.margin_object_sizes)
+                    if found_region is not None:
+                        found = pipeline.process(left, right, frame.calibration,
+                                                 region=found_region)
+                        found_decided = decided if found.region_problem else chooser.decide(
+                            found.points, found.rectified.left, found.rectified.right)
+                        row.update(found_mm=error_mm(found_decided, target),
+                                   found_problem=found.region_problem,
+                                   found_ms=total_ms(found),
+                                   found_share=found_region.roi[2] * found_region.roi[3]
+                                   / left.size)
                 previous = region or previous
+                previous_blocks = block_means(left)
                 rows.append(row)
                 print(f'{kind} {seed}: {row}', file=sys.stderr)
     report(rows, args.tolerance_mm, stride, load)
@@ -197,6 +228,22 @@ def report(rows: list[dict[str, object]], tolerance: float, stride: int, load: f
               f'| {share(region)} / {mean_finite(region)} | {len(kept)} / {len(tracked)} '
               f'| {same} / {len(tracked)} | {len(wrong_kept)} / {len(wrong)}, '
               f'{share([float(row["wrong_mm"]) for row in wrong])} |')  # type: ignore[arg-type]
+    print(f"\n| object | scene changes seen in the previous region's blocks | region found in "
+          f'the matches / scenes | found region kept / found | whole image within '
+          f'{tolerance:g} mm | found region within {tolerance:g} mm (failed: whole image) | '
+          'same point (within 0.5 mm) |')
+    print('|---|---:|---:|---:|---:|---:|---:|')
+    for kind in (*OBJECT_TYPES, 'all'):
+        wrong = [row for row in rows if kind in ('all', row['kind']) and 'wrong_mm' in row]
+        found = [row for row in wrong if 'found_mm' in row]
+        found_kept = [row for row in found if not row['found_problem']]
+        same = sum(abs(float(row['found_mm']) - float(row['full_mm'])) <= 0.5  # type: ignore[arg-type]
+                   or row['found_mm'] == row['full_mm'] for row in found)
+        print(f'| {kind} | {sum(bool(row["wrong_changed"]) for row in wrong)} / {len(wrong)} '
+              f'| {len(found)} / {len(wrong)} | {len(found_kept)} / {len(found)} '
+              f'| {share([float(row["full_mm"]) for row in found])} '  # type: ignore[arg-type]
+              f'| {share([float(row["found_mm"]) for row in found])} '  # type: ignore[arg-type]
+              f'| {same} / {len(found)} |')
     kept_rows = [row for row in rows if 'region_mm' in row and not row['region_problem']]
     print('\n| stage time per pair, median [ms] | whole image | area search (kept regions) | '
           'StereoBM, whole image | region share of the image | disparities searched |')
@@ -207,6 +254,12 @@ def report(rows: list[dict[str, object]], tolerance: float, stride: int, load: f
               f'| {statistics.median(float(r["bm_ms"]) for r in rows):.1f} '  # type: ignore[arg-type]
               f'| {statistics.median(float(r["region_share"]) for r in kept_rows):.2f} '  # type: ignore[arg-type]
               f'| {statistics.median(int(r["region_disparities"]) for r in kept_rows):.0f} |')  # type: ignore[call-overload]
+    found_rows = [row for row in rows if 'found_mm' in row and not row['found_problem']]
+    if found_rows:
+        print(f'\nRegions found in the matches, kept: median stage time '
+              f'{statistics.median(float(r["found_ms"]) for r in found_rows):.1f} ms, '  # type: ignore[arg-type]
+              f'median share of the image '
+              f'{statistics.median(float(r["found_share"]) for r in found_rows):.2f}.')  # type: ignore[arg-type]
 
 
 def randomized(per_type: int, stride: int, tolerance: float) -> None:

@@ -65,6 +65,8 @@ DROP_REASONS = ('superseded', 'image_too_large', 'calibration', 'size_mismatch',
 DECISION_TOPIC = topic_names.DECISION
 POSE_MISMATCH = 'pose_mismatch'
 PERIODIC_SKIPPED = 'periodic_unchanged'
+FROM_MATCHES = 'area_from_matches'
+FOUND_IN_MATCHES = 'found_in_matches'
 POSE_TOLERANCE_M = 0.005
 """Largest distance between a decision's best point in the camera frame and its world point
 placed with this node's camera pose; more means the two nodes place the camera differently,
@@ -84,7 +86,8 @@ class CorrelationNode(Node):
         # decisions' areas in the image.
         self._pose: tuple[StereoCalibration, np.ndarray | None] | None = None
         self.searched: Counter[str] = Counter(dict.fromkeys(
-            ('area', *FULL_FRAME_REASONS, *REGION_PROBLEMS, POSE_MISMATCH, PERIODIC_SKIPPED),
+            ('area', *FULL_FRAME_REASONS, *REGION_PROBLEMS, POSE_MISMATCH, PERIODIC_SKIPPED,
+             FROM_MATCHES, FOUND_IN_MATCHES),
             0))
         # After a failed region, the next pair waits for that pair's decision (roi.*)
         self.decision_waits: Counter[str] = Counter({'arrived': 0, 'timed out': 0})
@@ -254,9 +257,13 @@ class CorrelationNode(Node):
                 left, right, calibration,
                 full_disparity=self.disparity_publisher.get_subscription_count() > 0,
                 region=plan.region)
+            stamp_s = stamp_seconds(pair.header.stamp)
             if result.region_problem:
-                self.tracker.region_failed(result.region_problem,
-                                           stamp_seconds(pair.header.stamp))
+                self.tracker.region_failed(result.region_problem, stamp_s)
+            found = result.region is None and self.tracker.matched_whole(
+                result.disparity_map, stamp_s, result.rectified, self.pipeline.point_stride,
+                (result.disparity_map.config.min_disparity,
+                 result.disparity_map.config.disparity_range)) is not None
         except ImageSizeError as error:
             self._drop('image_too_large', str(error))
             return
@@ -301,6 +308,9 @@ class CorrelationNode(Node):
             self.searched[result.region_problem or plan.reason or 'area'] += 1
             if plan.periodic_skipped and result.region is not None:
                 self.searched[PERIODIC_SKIPPED] += 1
+            if plan.from_matches and result.region is not None:
+                self.searched[FROM_MATCHES] += 1
+            self.searched[FOUND_IN_MATCHES] += int(found)
             self.processed += 1
             self.last_timings_ms = timings
             self.last_points = len(result.points)
@@ -355,6 +365,9 @@ class CorrelationNode(Node):
                 f'decisions not tracked: {POSE_MISMATCH}': self.searched[POSE_MISMATCH],
                 'periodic whole images skipped, image unchanged outside the area':
                     self.searched[PERIODIC_SKIPPED],
+                'regions found in whole-image matches': self.searched[FOUND_IN_MATCHES],
+                'pairs matched in a region found in whole-image matches':
+                    self.searched[FROM_MATCHES],
                 **{f'decisions waited for after a failed region: {outcome}': count
                    for outcome, count in self.decision_waits.items()},
                 **self.pair_sequence.report(topic_names.PAIR),

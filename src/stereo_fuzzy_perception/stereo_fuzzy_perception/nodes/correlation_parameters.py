@@ -86,6 +86,12 @@ class RoiSettings:
         _TRACKING.change_share, "Share of the region's blocks changed since the previous pair "
         'above which the region is not tried [-]', 0.0, 1.0)
 
+    regions_from_matches: bool = parameter(
+        _TRACKING.regions_from_matches, 'While no area is tracked (after a failed or changed '
+        'region), find a region around the one object standing out of the surface in a '
+        "whole-image pair's own matches and match the next pairs in it (checked as any region) "
+        'until a decision arrives, instead of waiting for that decision')
+
     def tracking_config(self) -> TrackingConfig:
         """Return the tracking settings (tracking only while the area is the whole image)."""
         return TrackingConfig(
@@ -93,7 +99,8 @@ class RoiSettings:
             full_frame_every=self.full_frame_every, max_age_s=self.max_age_s,
             margin_object_sizes=self.margin_object_sizes, margin_m=self.margin_m,
             decision_wait_s=self.decision_wait_s, detect_scene_change=self.detect_scene_change,
-            change_grey_levels=self.change_grey_levels, change_share=self.change_share)
+            change_grey_levels=self.change_grey_levels, change_share=self.change_share,
+            regions_from_matches=self.regions_from_matches)
 
 
 @dataclass(frozen=True)

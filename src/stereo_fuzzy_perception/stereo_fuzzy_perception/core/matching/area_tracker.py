@@ -17,6 +17,11 @@ anything is matched: a region whose blocks changed since the previous pair beyon
 forgotten as after a failed region), and a periodic whole-image pair whose image did not change
 outside the region since the last whole-image pair is matched in the region.
 
+With `regions_from_matches`, a pair matched on the whole image while no area is tracked (after
+a failed or changed region) gives a region of its own (area_search.region_from_matches, with
+the surface of the last region planned): the next pairs are matched in it until a decision
+arrives, instead of waiting for that decision or being matched whole.
+
 Thread-safe: decisions arrive on one thread, pairs are matched on another. ROS-free.
 """
 
@@ -34,6 +39,7 @@ from stereo_fuzzy_perception.core.matching.area_search import (
     AreaProjectionError,
     SearchRegion,
     TrackedArea,
+    region_from_matches,
     search_region,
 )
 from stereo_fuzzy_perception.core.matching.scene_change import (
@@ -41,6 +47,7 @@ from stereo_fuzzy_perception.core.matching.scene_change import (
     changed_outside,
     changed_share_inside,
 )
+from stereo_fuzzy_perception.core.matching.window_matcher import DisparityMap
 
 # Why a pair was matched on the whole image.
 TRACKING_OFF = 'tracking_off'
@@ -68,6 +75,8 @@ class TrackingConfig:
         change_grey_levels: Change of a block's mean that counts as a change [grey levels].
         change_share: Share of the region's blocks changed since the previous pair above
             which the region is not tried [-].
+        regions_from_matches: Track a region found in a whole-image pair's matches until a
+            decision arrives (see above).
     """
 
     enabled: bool = True
@@ -79,6 +88,7 @@ class TrackingConfig:
     detect_scene_change: bool = True
     change_grey_levels: float = 8.0
     change_share: float = 0.2
+    regions_from_matches: bool = True
 
 
 @dataclass(frozen=True)
@@ -92,6 +102,7 @@ class SearchPlan:
     region: SearchRegion | None
     reason: str = ''
     periodic_skipped: bool = False
+    from_matches: bool = False
 
 
 class AreaTracker:
@@ -113,6 +124,14 @@ class AreaTracker:
         self._planned_blocks: np.ndarray | None = None
         self._previous_blocks: np.ndarray | None = None
         self._whole_blocks: np.ndarray | None = None
+        # the last region planned (its surface plane), and a region found in a whole-image
+        # pair's matches with that pair's stamp [s]
+        self._reference: SearchRegion | None = None
+        self._found: tuple[float, SearchRegion] | None = None
+        # whether the last pair planned was in a found region, and whether whole-image
+        # matches may give one (not after a found region failed, until the next decision)
+        self._planned_from_matches = False
+        self._search_matches = True
         self.last_problem = ''
 
     def observe(self, area: TrackedArea | None, stamp_s: float | None = None) -> None:
@@ -130,6 +149,10 @@ class AreaTracker:
             if not stale and (area is None or self._area is None
                               or area.stamp_s >= self._area.stamp_s):
                 self._area = area
+            if (not stale and self._found is not None and decided_s is not None
+                    and decided_s >= self._found[0]):
+                self._found = None  # a decision on that pair (or a later one) replaces it
+            self._search_matches = True
             if decided_s is not None:
                 self._newest_decision_s = max(self._newest_decision_s, decided_s)
                 self._decided.notify_all()
@@ -144,6 +167,9 @@ class AreaTracker:
         """
         with self._lock:
             self._area = None
+            self._found = None
+            if self._planned_from_matches:
+                self._search_matches = False  # no second try before a decision arrives
             self.last_problem = problem
             self._awaited_s = stamp_s
             if stamp_s is not None:
@@ -163,6 +189,8 @@ class AreaTracker:
             self._awaited_s = None
             if awaited is None or not self.config.enabled or self.config.decision_wait_s <= 0.0:
                 return None
+            if self._found is not None and self._found[0] >= awaited:
+                return None  # that pair's matches gave a region: nothing to wait for
             return self._decided.wait_for(lambda: self._newest_decision_s >= awaited,
                                           timeout=self.config.decision_wait_s)
 
@@ -191,6 +219,12 @@ class AreaTracker:
             self._planned_blocks = self._previous_blocks = blocks
         if not config.enabled or world_from_camera is None:
             return self._full(TRACKING_OFF)
+        with self._lock:
+            found = self._found if config.regions_from_matches else None
+        if found is not None and (area is None or area.stamp_s < found[0]) \
+                and 0.0 <= stamp_s - found[0] <= config.max_age_s:
+            return self._in_region(found[1], stamp_s, periodic, blocks, previous, whole,
+                                   raw_box, from_matches=True)
         if area is None:
             return self._full(NO_AREA)
         if not 0.0 <= stamp_s - area.stamp_s <= config.max_age_s:
@@ -205,6 +239,21 @@ class AreaTracker:
             with self._lock:
                 self.last_problem = str(error)
             return self._full(NO_REGION)
+        return self._in_region(region, stamp_s, periodic, blocks, previous, whole, raw_box)
+
+    def _in_region(self, region: SearchRegion, stamp_s: float, periodic: bool,
+                   blocks: np.ndarray | None, previous: np.ndarray | None,
+                   whole: np.ndarray | None,
+                   raw_box: Callable[[tuple[int, int, int, int]], Box] | None,
+                   from_matches: bool = False) -> SearchPlan:
+        """Plan the pair in `region` unless its blocks say otherwise (or it is due whole)."""
+        config = self.config
+        with self._lock:
+            self._reference = region
+            self._planned_from_matches = from_matches
+        detect = config.detect_scene_change and blocks is not None and raw_box is not None
+        if periodic and not detect:
+            return self._full(PERIODIC)
         if detect and blocks is not None and raw_box is not None:
             box = raw_box(region.roi)
             share = changed_share_inside(blocks, previous, box, config.change_grey_levels)
@@ -218,10 +267,45 @@ class AreaTracker:
                 return self._full(PERIODIC)
         with self._lock:
             self._since_full = 0 if periodic else self._since_full + 1
-        return SearchPlan(region, periodic_skipped=periodic)
+        return SearchPlan(region, periodic_skipped=periodic, from_matches=from_matches)
+
+    def matched_whole(self, disparity_map: DisparityMap, stamp_s: float,
+                      calibration: StereoCalibration, point_stride: int,
+                      full_range: tuple[int, int]) -> SearchRegion | None:
+        """Take a pair matched on the whole image: while no area is tracked, find a region.
+
+        Args:
+            disparity_map: The pair's whole-image matches.
+            stamp_s: The pair's stamp [s].
+            calibration: Its rectified calibration.
+            point_stride: Rows and columns the points keep.
+            full_range: (min_disparity, disparity_range) of the whole-image search [px].
+
+        Returns:
+            The region found (area_search.region_from_matches), tracked until a decision on
+            this pair or a later one arrives; None when none was looked for or found.
+        """
+        config = self.config
+        with self._lock:
+            reference = self._reference
+            wanted = (config.enabled and config.regions_from_matches and self._area is None
+                      and self._search_matches and reference is not None
+                      and stamp_s >= self._failed_s
+                      and stamp_s > self._newest_decision_s)
+        if not wanted or reference is None:
+            return None
+        region = region_from_matches(disparity_map, reference, calibration, point_stride,
+                                     full_range, config.margin_object_sizes)
+        if region is not None:
+            with self._lock:
+                if self._area is None and stamp_s > self._newest_decision_s:
+                    self._found = (stamp_s, region)
+                    self._decided.notify_all()
+        return region
 
     def _full(self, reason: str) -> SearchPlan:
         with self._lock:
             self._since_full = 0
+            self._planned_from_matches = False
             self._whole_blocks = self._planned_blocks
         return SearchPlan(None, reason)
