@@ -71,6 +71,10 @@ CORRELATION_COUNTERS = ('pairs received', 'pairs processed', 'dropped superseded
                         'pairs matched in the tracked area')
 WHOLE_IMAGE_PREFIX = 'pairs matched whole: '
 DECISION_WAIT_PREFIX = 'decisions waited for after a failed region: '
+# correlation_node's counts of its block-mean comparison and of the regions found in matches
+TRACKING_COUNTERS = ('periodic whole images skipped, image unchanged outside the area',
+                     'regions found in whole-image matches',
+                     'pairs matched in a region found in whole-image matches')
 SCENE_OBJECTS = ('cubic_square', 'cylinder', 'cubic_rectangle', 'circle')
 
 
@@ -383,9 +387,9 @@ def measure(monitor: ChainMonitor, publisher: PairPublisher, group: ProcessGroup
         sync=counter_deltas(before[SYNC_STATUS], after[SYNC_STATUS], SYNC_COUNTERS),
         correlation=counter_deltas(
             before[CORRELATION_STATUS], after[CORRELATION_STATUS],
-            CORRELATION_COUNTERS + tuple(key for key in after[CORRELATION_STATUS]
-                                         if key.startswith((WHOLE_IMAGE_PREFIX,
-                                                            DECISION_WAIT_PREFIX)))),
+            CORRELATION_COUNTERS + TRACKING_COUNTERS
+            + tuple(key for key in after[CORRELATION_STATUS]
+                    if key.startswith((WHOLE_IMAGE_PREFIX, DECISION_WAIT_PREFIX)))),
         fuzzy=counter_deltas(before[FUZZY_STATUS], after[FUZZY_STATUS],
                              ('decisions made', 'decisions refused')),
         correlation_mean_ms=correlation_mean_ms(before[CORRELATION_STATUS],
@@ -434,8 +438,9 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
     print('\n### Where correlation_node matched the pairs (tracked area, or the whole image and '
           'why)\n')
     print('| rate [Hz] | tracked area | whole image (reason: pairs) | after a failed region, '
-          "that pair's decision waited for (outcome: pairs) |")
-    print('|---:|---:|---|---|')
+          "that pair's decision waited for (outcome: pairs) | periodic skipped (unchanged) | "
+          'regions found in whole-image matches / pairs matched in them |')
+    print('|---:|---:|---|---|---:|---:|')
     for r in results:
         whole = ', '.join(f'{key[len(WHOLE_IMAGE_PREFIX):]}: {count}'
                           for key, count in r.correlation.items()
@@ -444,7 +449,8 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
                           for key, count in r.correlation.items()
                           if key.startswith(DECISION_WAIT_PREFIX))
         print(f'| {r.rate_hz:g} | {r.correlation["pairs matched in the tracked area"]} '
-              f'| {whole or "-"} | {waits or "-"} |')
+              f'| {whole or "-"} | {waits or "-"} | {r.correlation[TRACKING_COUNTERS[0]]} '
+              f'| {r.correlation[TRACKING_COUNTERS[1]]} / {r.correlation[TRACKING_COUNTERS[2]]} |')
 
     stages = list(dict.fromkeys(stage for r in results for stage in r.stage_ms))  # node order
     print('\n### Correlation node processing time [ms] (mean over the measurement; stages '

@@ -14,6 +14,7 @@ from stereo_fuzzy_perception.core.matching.area_search import (
     AreaProjectionError,
     SearchRegion,
     TrackedArea,
+    region_from_matches,
     region_problem,
     search_region,
     surface_disparity_plane,
@@ -339,3 +340,28 @@ def test_the_periodic_whole_image_is_skipped_while_nothing_changed_outside_the_r
     tracker.observe(box_area(0.42))
     tracker.config = TrackingConfig(full_frame_every=1, detect_scene_change=False)
     assert plan(0.5, blocks) == (False, PERIODIC, False)
+
+
+def test_a_region_is_found_around_the_one_object_standing_out_in_whole_image_matches():
+    rig = RIGS[0]
+    _, left, right = grid_matches(rig, None, 0.0, 8)
+    calibration = StereoCalibration(left, right)
+    floor = np.full((120, 160), 8.0)
+    floor[::7, ::11] = 30.0  # scattered mismatches stand out too, one by one
+    one = floor.copy()
+    one[40:70, 90:120] = 10.0  # a block 2 px above the floor's 8 px
+    found = region_from_matches(_disparity_map(one), REGION, calibration, 1, (0, 40), 1.0)
+    assert found is not None
+    x, y, width, height = found.roi
+    assert x <= 90 - 29 and y <= 40 - 29 and x + width >= 120 + 29 - 1
+    assert y + height >= 70 + 29 - 1 and width <= 160 - x
+    assert found.min_disparity <= 8 - 3 and found.min_disparity + found.disparity_range > 12
+    assert found.top_centre == pytest.approx((104.5, 54.5), abs=1.0)
+    # its own check keeps the region on the same matches
+    assert region_problem(_disparity_map(one), found, 1) is None
+    assert region_from_matches(_disparity_map(floor), REGION, calibration, 1, (0, 40),
+                               1.0) is None  # nothing but mismatches
+    two = one.copy()
+    two[80:100, 10:40] = 10.0  # another object: the fuzzy stage chooses, no region
+    assert region_from_matches(_disparity_map(two), REGION, calibration, 1, (0, 40),
+                               1.0) is None

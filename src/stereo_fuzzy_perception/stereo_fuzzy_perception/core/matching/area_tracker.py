@@ -296,11 +296,12 @@ class AreaTracker:
             return None
         region = region_from_matches(disparity_map, reference, calibration, point_stride,
                                      full_range, config.margin_object_sizes)
-        if region is not None:
-            with self._lock:
-                if self._area is None and stamp_s > self._newest_decision_s:
-                    self._found = (stamp_s, region)
-                    self._decided.notify_all()
+        if region is None:
+            return None
+        with self._lock:
+            if self._area is not None or stamp_s <= self._newest_decision_s:
+                return None  # a decision arrived meanwhile
+            self._found = (stamp_s, region)
         return region
 
     def _full(self, reason: str) -> SearchPlan:
