@@ -191,7 +191,8 @@ class StereoRectifier:
             roi: (x, y, width, height) in the left rectified image [px].
 
         Returns:
-            The smallest box holding every raw pixel the ROI's pixels interpolate from,
+            The smallest box holding every raw pixel the ROI's border pixels interpolate from
+            (a rectification map is smooth: its extremes over a rectangle lie on the border),
             clipped to the image (stop values exclusive) [px].
 
         Raises:
@@ -204,7 +205,8 @@ class StereoRectifier:
         x1, y1 = min(width, x + roi_width), min(height, y + roi_height)
         if left_maps.map_x is None or x1 <= x0 or y1 <= y0:
             return x0, y0, x1, y1
-        raw = left_maps.map_x[y0:y1, x0:x1].reshape(-1, 2)  # integer parts of (x, y)
+        block = left_maps.map_x[y0:y1, x0:x1]  # integer parts of (x, y)
+        raw = np.concatenate([block[0], block[-1], block[:, 0], block[:, -1]]).astype(np.int32)
         low, high = raw.min(axis=0), raw.max(axis=0)
         return (max(0, int(low[0])), max(0, int(low[1])),
                 min(width, int(high[0]) + 2), min(height, int(high[1]) + 2))
