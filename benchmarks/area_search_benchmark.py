@@ -32,7 +32,8 @@ tracked area must not cost accuracy on rigs other than the demo's.
 tests/test_whole_chain.py takes them), scene after scene as correlation_node would with
 roi.max_age_s long enough to track every scene's area into the next (a different object
 elsewhere): the points are compared with the whole image's, and each scene is also matched in
-its own decision's region.
+its own decision's region. The block means are compared as correlation_node does: a previous
+scene's region whose blocks changed is not matched (`scene_changed` in the table).
 
     source scripts/env.sh
     nice python benchmarks/area_search_benchmark.py --scenes-per-type 10
@@ -43,6 +44,7 @@ its own decision's region.
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import statistics
 import sys
@@ -337,7 +339,7 @@ def replay_bags() -> None:
     import dataclasses
 
     import yaml
-    from stereo_fuzzy_perception.core.matching.area_tracker import AreaTracker
+    from stereo_fuzzy_perception.core.matching.area_tracker import SCENE_CHANGED, AreaTracker
     from stereo_fuzzy_perception.core.matching.disparity_range import workspace_disparity_range
     from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
     from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
@@ -374,8 +376,13 @@ def replay_bags() -> None:
                                             disparity_range=full_range[1])
             whole = pipeline.process(left, right, calibration)
             decided = chooser.decide(whole.points, whole.rectified.left, whole.rectified.right)
-            plan = tracker.plan(stamp, calibration, pose, full_range)
-            if plan.region is not None:
+            plan = tracker.plan(stamp, calibration, pose, full_range, block_means(left),
+                                functools.partial(pipeline.rectifier.raw_box, calibration))
+            if plan.reason == SCENE_CHANGED:  # not matched in it: the whole image's point
+                tried += 1
+                same += 1
+                where[SCENE_CHANGED] = where.get(SCENE_CHANGED, 0) + 1
+            elif plan.region is not None:
                 tracked = pipeline.process(left, right, calibration, region=plan.region)
                 again = chooser.decide(tracked.points, tracked.rectified.left,
                                        tracked.rectified.right)

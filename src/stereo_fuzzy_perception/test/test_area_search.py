@@ -20,6 +20,7 @@ from stereo_fuzzy_perception.core.matching.area_search import (
     surface_disparity_plane,
 )
 from stereo_fuzzy_perception.core.matching.area_tracker import (
+    MAX_PERIODIC_SKIPPED,
     NO_AREA,
     NO_REGION,
     PERIODIC,
@@ -324,6 +325,10 @@ def test_the_periodic_whole_image_is_skipped_while_nothing_changed_outside_the_r
 
     assert plan(0.1, blocks) == (True, '', True)  # due, but unchanged: in the region
     assert plan(0.2, blocks) == (True, '', True)
+    for stamp in range(MAX_PERIODIC_SKIPPED - 2):
+        assert plan(0.2 + 0.001 * stamp, blocks) == (True, '', True)
+    assert plan(0.29, blocks) == (False, PERIODIC, False)  # skipped often enough in a row
+    assert plan(0.295, blocks) == (True, '', True)
     elsewhere = image.copy()
     elsewhere[:24, :24] = 255 - elsewhere[:24, :24]  # something came in, far from the box
     assert plan(0.3, block_means(elsewhere)) == (False, PERIODIC, False)

@@ -58,6 +58,10 @@ NO_REGION = 'no_region'
 SCENE_CHANGED = 'scene_changed'
 FULL_FRAME_REASONS = (TRACKING_OFF, NO_AREA, STALE_AREA, PERIODIC, NO_REGION, SCENE_CHANGED)
 
+MAX_PERIODIC_SKIPPED = 9
+"""Periodic whole-image pairs skipped in a row at most (an unchanged image): the next one is
+matched whole whatever the blocks say (a change too faint for them is still found)."""
+
 
 @dataclass(frozen=True)
 class TrackingConfig:
@@ -114,6 +118,7 @@ class AreaTracker:
         self._decided = threading.Condition(self._lock)
         self._area: TrackedArea | None = None
         self._since_full = 0
+        self._periodic_skipped = 0  # in a row, since the last whole-image pair
         self._newest_decision_s = -math.inf  # stamp of the newest pair decided [s]
         self._awaited_s: float | None = None  # the failed region's pair stamp [s]
         # decisions on pairs older than the last failed region's are not tracked: they would
@@ -175,6 +180,7 @@ class AreaTracker:
             if stamp_s is not None:
                 self._failed_s = max(self._failed_s, stamp_s)
             self._since_full = 0  # the pair is matched on the whole image
+            self._periodic_skipped = 0
             self._whole_blocks = self._planned_blocks
 
     def wait_for_decision(self) -> bool | None:
@@ -263,10 +269,12 @@ class AreaTracker:
                 self.region_failed(f'{share:.0%} of the region changed since the previous pair',
                                    stamp_s)
                 return SearchPlan(None, SCENE_CHANGED)
-            if periodic and changed_outside(blocks, whole, box, config.change_grey_levels):
+            if periodic and (self._periodic_skipped >= MAX_PERIODIC_SKIPPED or changed_outside(
+                    blocks, whole, box, config.change_grey_levels)):
                 return self._full(PERIODIC)
         with self._lock:
             self._since_full = 0 if periodic else self._since_full + 1
+            self._periodic_skipped += int(periodic)
         return SearchPlan(region, periodic_skipped=periodic, from_matches=from_matches)
 
     def matched_whole(self, disparity_map: DisparityMap, stamp_s: float,
@@ -307,6 +315,7 @@ class AreaTracker:
     def _full(self, reason: str) -> SearchPlan:
         with self._lock:
             self._since_full = 0
+            self._periodic_skipped = 0
             self._planned_from_matches = False
             self._whole_blocks = self._planned_blocks
         return SearchPlan(None, reason)
