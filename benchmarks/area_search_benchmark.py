@@ -28,6 +28,12 @@ training never saw, 0.30-0.80 m up, tilted, toed in; simulation/scene_distributi
 both modes with correlation_node's default matcher settings for its rig, at --point-stride: the
 tracked area must not cost accuracy on rigs other than the demo's.
 
+--sequence N replays the chain latency benchmark's four scenes, N pairs each, through
+correlation_node's tracker in this one process (each decision seen --lag pairs later, as the
+chain's decisions arrive), with and without issue #18's block means and regions from matches:
+the work per pair (stage and fuzzy decision) by its place after a scene change, free of DDS and
+of the other processes' scheduling.
+
 --bags replays the committed bags instead (bags/*, each with its chain parameters as
 tests/test_whole_chain.py takes them), scene after scene as correlation_node would with
 roi.max_age_s long enough to track every scene's area into the next (a different object
@@ -116,7 +122,16 @@ def main() -> None:
     parser.add_argument('--randomized', action='store_true',
                         help="the randomized distribution's evaluation split instead")
     parser.add_argument('--point-stride', type=int, default=1, help='with --randomized')
+    parser.add_argument('--sequence', type=int, metavar='PAIRS_PER_SCENE',
+                        help="replay the chain benchmark's scenes, this many pairs each, "
+                        'through the tracker in one process instead (work per pair)')
+    parser.add_argument('--pairs', type=int, default=600, help='with --sequence')
+    parser.add_argument('--lag', type=int, default=2,
+                        help='with --sequence: pairs until a decision is seen')
     args = parser.parse_args()
+    if args.sequence:
+        sequence(args.sequence, args.pairs, args.lag)
+        return
     if args.bags:
         replay_bags()
         return
@@ -414,6 +429,92 @@ def replay_bags() -> None:
         print(f'| {bag.name} | {len(pairs)} | {where.get("kept", 0)} / {tried}, {same} / {tried} '
               f'| {own_kept} / {own_tried}, {spread} '
               f'| {", ".join(f"{key}: {count}" for key, count in sorted(where.items()))} |')
+
+
+SEQUENCE_OBJECTS = ('cubic_square', 'cylinder', 'cubic_rectangle', 'circle')
+"""The chain latency benchmark's scenes (render_scene seeds 100, 101, ... in this order)."""
+
+
+def sequence(pairs_per_scene: int, pairs: int, lag: int) -> None:
+    """Replay the chain benchmark's scene sequence through the tracker in one process; print
+    the work per pair by its place after a scene change, with and without issue #18's changes.
+    """
+    import dataclasses
+
+    from stereo_fuzzy_perception.core.matching.area_tracker import AreaTracker
+    from stereo_fuzzy_perception.core.matching.disparity_range import workspace_disparity_range
+    from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
+    from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
+    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+    from stereo_fuzzy_perception.simulation.scene_renderer import render_scene
+
+    load = os.getloadavg()[0]
+    stride = demo_point_stride()
+    frames = [render_scene(100 + index, kind, encoding='mono8')
+              for index, kind in enumerate(SEQUENCE_OBJECTS)]
+    rig = StereoRig()
+    pose = rig.world_from_left_camera()
+    area_config = AreaConfig()
+    chooser = BestPointChooser.create('fuzzy_fitted', area_config, rig)
+    calibration = frames[0].calibration
+    derived = workspace_disparity_range(calibration, pose, area_config.workspace_min,
+                                        area_config.workspace_max)
+    full_range = (derived.min_disparity, derived.disparity_range)
+    warm = StereoMatchingPipeline(
+        MatcherConfig(min_disparity=full_range[0], disparity_range=full_range[1]),
+        point_stride=stride).process(frames[0].left, frames[0].right, calibration)
+    chooser.decide(warm.points, warm.rectified.left, warm.rectified.right)  # kernels compiled
+    configs = {
+        'before (no block means, no regions from matches)': dataclasses.replace(
+            TrackingConfig(), detect_scene_change=False, regions_from_matches=False,
+            decision_wait_s=0.0),
+        'issue #18 defaults': dataclasses.replace(TrackingConfig(), decision_wait_s=0.0)}
+    print(f"\n### The chain benchmark's scenes in one process: {pairs} pairs at 30 Hz stamps, "
+          f'{pairs_per_scene} per scene, each decision seen {lag} pairs later (point stride '
+          f'{stride}; 1-min load {load:.1f})\n')
+    print('| tracking | whole image | matched twice | region from matches | mean work per pair '
+          '[ms]: 1st / 2nd / 3rd / 4th of a scene, the rest | p99 work [ms] |')
+    print('|---|---:|---:|---:|---|---:|')
+    for label, config in configs.items():
+        pipeline = StereoMatchingPipeline(
+            MatcherConfig(min_disparity=full_range[0], disparity_range=full_range[1]),
+            point_stride=stride)
+        tracker = AreaTracker(config)
+        pending: list[tuple[int, TrackedArea | None, float]] = []
+        work: dict[int, list[float]] = {}
+        every: list[float] = []
+        whole = twice = found = 0
+        for index in range(pairs):
+            frame = frames[(index // pairs_per_scene) % len(frames)]
+            stamp = index / 30.0
+            for item in [item for item in pending if item[0] <= index]:
+                tracker.observe(item[1], item[2])
+                pending.remove(item)
+            start = time.perf_counter()
+            blocks = block_means(frame.left) if config.detect_scene_change else None
+            plan = tracker.plan(stamp, frame.calibration, pose, full_range, blocks,
+                                functools.partial(pipeline.rectifier.raw_box, frame.calibration))
+            result = pipeline.process(frame.left, frame.right, frame.calibration,
+                                      region=plan.region)
+            if result.region_problem:
+                tracker.region_failed(result.region_problem, stamp)
+            if result.region is None:
+                tracker.matched_whole(result.disparity_map, stamp, result.rectified, stride,
+                                      full_range)
+            decided = chooser.decide(result.points, result.rectified.left,
+                                     result.rectified.right)
+            elapsed = 1e3 * (time.perf_counter() - start)
+            whole += int(result.region is None)
+            twice += int(bool(result.region_problem))
+            found += int(plan.from_matches and result.region is not None)
+            area = tracked_area(decided)
+            pending.append((index + lag, None if area is None
+                            else dataclasses.replace(area, stamp_s=stamp), stamp))
+            work.setdefault(min(index % pairs_per_scene, 4), []).append(elapsed)
+            every.append(elapsed)
+        means = ' / '.join(f'{statistics.fmean(work[place]):.1f}' for place in range(4))
+        print(f'| {label} | {whole} | {twice} | {found} | {means}, '
+              f'{statistics.fmean(work[4]):.1f} | {float(np.percentile(every, 99)):.1f} |')
 
 
 if __name__ == '__main__':

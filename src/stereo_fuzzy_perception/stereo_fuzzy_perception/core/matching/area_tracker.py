@@ -157,7 +157,8 @@ class AreaTracker:
             if (not stale and self._found is not None and decided_s is not None
                     and decided_s >= self._found[0]):
                 self._found = None  # a decision on that pair (or a later one) replaces it
-            self._search_matches = True
+            if not stale and decided_s is not None and decided_s >= self._failed_s:
+                self._search_matches = True
             if decided_s is not None:
                 self._newest_decision_s = max(self._newest_decision_s, decided_s)
                 self._decided.notify_all()
@@ -227,8 +228,7 @@ class AreaTracker:
             return self._full(TRACKING_OFF)
         with self._lock:
             found = self._found if config.regions_from_matches else None
-        if found is not None and (area is None or area.stamp_s < found[0]) \
-                and 0.0 <= stamp_s - found[0] <= config.max_age_s:
+        if found is not None and area is None and 0.0 <= stamp_s - found[0] <= config.max_age_s:
             return self._in_region(found[1], stamp_s, periodic, blocks, previous, whole,
                                    raw_box, from_matches=True)
         if area is None:
