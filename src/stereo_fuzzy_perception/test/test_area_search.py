@@ -1,5 +1,6 @@
 """The tracked correlation area: its search region, the region's check and when it is used."""
 
+import dataclasses
 import threading
 
 import numpy as np
@@ -370,3 +371,13 @@ def test_a_region_is_found_around_the_one_object_standing_out_in_whole_image_mat
     two[80:100, 10:40] = 10.0  # another object: the fuzzy stage chooses, no region
     assert region_from_matches(_disparity_map(two), REGION, calibration, 1, (0, 40),
                                1.0) is None
+    # a low object (0.5 px) after a tall one: found with the surface's noise, not with the
+    # tall object's threshold
+    low = floor.copy()
+    low[40:70, 90:120] = 8.5
+    assert region_from_matches(_disparity_map(low), REGION, calibration, 1, (0, 40),
+                               1.0) is None
+    noisy = dataclasses.replace(REGION, noise_px=0.3)
+    found = region_from_matches(_disparity_map(low), noisy, calibration, 1, (0, 40), 1.0)
+    assert found is not None and found.standing_px == pytest.approx(0.3)
+    assert region_problem(_disparity_map(low), found, 1) is None

@@ -122,6 +122,8 @@ class SearchRegion:
         standing_px: Disparity above the surface's from which a match stands out [px].
         top_face_px: Pixels of the top face projected into the left image [px^2].
         top_centre: (u, v) of the top face's projected centre [px].
+        noise_px: Disparity above the surface's that only noise reaches (NOISE_SIGMAS of the
+            surface noise) [px]; 0 when unknown.
     """
 
     roi: tuple[int, int, int, int]
@@ -131,6 +133,7 @@ class SearchRegion:
     standing_px: float
     top_face_px: float
     top_centre: tuple[float, float] = (math.nan, math.nan)
+    noise_px: float = 0.0
 
 
 def _rectified_from_world(calibration: StereoCalibration,
@@ -242,10 +245,11 @@ def search_region(area: TrackedArea, calibration: StereoCalibration,
     top = points @ transform[:3, :3].T + transform[:3, 3]
     top_u, top_v, top_disparity = _project(calibration, top)
     excess = float(np.median(top_disparity - (plane[0] * top_u + plane[1] * top_v + plane[2])))
-    standing = max(STANDING_SHARE * excess, NOISE_SIGMAS * area.disparity_sigma_px)
+    noise = NOISE_SIGMAS * area.disparity_sigma_px
+    standing = max(STANDING_SHARE * excess, noise)
     return SearchRegion((x0, y0, x1 - x0, y1 - y0), low, high - low + 1, plane, standing,
                         _quadrilateral_area(top_u, top_v),
-                        (float(top_u.mean()), float(top_v.mean())))
+                        (float(top_u.mean()), float(top_v.mean())), noise)
 
 
 def _quadrilateral_area(u: np.ndarray, v: np.ndarray) -> float:
@@ -320,8 +324,9 @@ def region_from_matches(disparity_map: DisparityMap, reference: SearchRegion,
 
     Args:
         disparity_map: A pair matched on the whole image (at least the point stride's rows).
-        reference: An earlier region of the same rig: its surface plane and its `standing_px`
-            tell which matches stand out of the work surface.
+        reference: An earlier region of the same rig: its surface plane and its `noise_px`
+            (its `standing_px` when that is unknown) tell which matches stand out of the work
+            surface, whatever the height of the object it was made for.
         calibration: The rectified calibration (P of both cameras).
         point_stride: Rows and columns the points keep.
         full_range: (min_disparity, disparity_range) of the whole-image search [px].
@@ -339,8 +344,9 @@ def region_from_matches(disparity_map: DisparityMap, reference: SearchRegion,
     disparity = disparity_map.disparity[np.ix_(rows, columns)]
     a, b, c = reference.surface_plane
     surface = a * columns[None, :] + b * rows[:, None] + c
+    threshold = reference.noise_px if reference.noise_px > 0.0 else reference.standing_px
     standing = (status == MatchStatus.VALID) & (
-        np.nan_to_num(disparity - surface, nan=-np.inf) > reference.standing_px)
+        np.nan_to_num(disparity - surface, nan=-np.inf) > threshold)
     if np.count_nonzero(standing) < MIN_FOUND_POINTS:
         return None
     # groups of standing matches, across one missing match
@@ -378,6 +384,6 @@ def region_from_matches(disparity_map: DisparityMap, reference: SearchRegion,
     if high < low or x1 - x0 < 2 or y1 - y0 < 2:
         return None
     return SearchRegion((x0, y0, x1 - x0, y1 - y0), low, high - low + 1,
-                        reference.surface_plane, reference.standing_px,
+                        reference.surface_plane, threshold,
                         float(len(u)) * point_stride ** 2,
-                        (float(np.median(u)), float(np.median(v))))
+                        (float(np.median(u)), float(np.median(v))), reference.noise_px)
