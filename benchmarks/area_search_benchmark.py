@@ -11,7 +11,13 @@ rig, the demo's point stride), in one run:
    in it (a static scene) and decided again. A region whose check fails is matched again on
    the whole image, as correlation_node does (counted);
 3. wrong area: the region of the previous scene (another object elsewhere) on this pair: the
-   check must send it to the whole image, or the decision must be as good.
+   check must send it to the whole image, or the decision must be as good;
+4. found in the matches: the region area_search.region_from_matches finds in the pair's own
+   whole-image matches, with the previous scene's region as the surface reference (what
+   correlation_node tracks after a scene change until the new object's first decision); the
+   same pair is matched in it and decided again (a failed check: the whole image's decision).
+   The scene change itself: whether the previous scene's region changed in the block means
+   (scene_change.py, correlation_node's defaults) between the previous scene's pair and this one.
 
 Success = best point within --tolerance-mm of the top face's centre (as table1_benchmark).
 Stage times are medians of the calls, against StereoBM (block 9, the whole-image disparities)
@@ -22,11 +28,18 @@ training never saw, 0.30-0.80 m up, tilted, toed in; simulation/scene_distributi
 both modes with correlation_node's default matcher settings for its rig, at --point-stride: the
 tracked area must not cost accuracy on rigs other than the demo's.
 
+--sequence N replays the chain latency benchmark's four scenes, N pairs each, through
+correlation_node's tracker in this one process (each decision seen --lag pairs later, as the
+chain's decisions arrive), with and without issue #18's block means and regions from matches:
+the work per pair (stage and fuzzy decision) by its place after a scene change, free of DDS and
+of the other processes' scheduling.
+
 --bags replays the committed bags instead (bags/*, each with its chain parameters as
 tests/test_whole_chain.py takes them), scene after scene as correlation_node would with
 roi.max_age_s long enough to track every scene's area into the next (a different object
 elsewhere): the points are compared with the whole image's, and each scene is also matched in
-its own decision's region.
+its own decision's region. The block means are compared as correlation_node does: a previous
+scene's region whose blocks changed is not matched (`scene_changed` in the table).
 
     source scripts/env.sh
     nice python benchmarks/area_search_benchmark.py --scenes-per-type 10
@@ -37,6 +50,7 @@ its own decision's region.
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import statistics
 import sys
@@ -60,9 +74,14 @@ from stereo_fuzzy_perception.core.matching.area_search import (  # noqa: E402
     AreaProjectionError,
     SearchRegion,
     TrackedArea,
+    region_from_matches,
     search_region,
 )
 from stereo_fuzzy_perception.core.matching.area_tracker import TrackingConfig  # noqa: E402
+from stereo_fuzzy_perception.core.matching.scene_change import (  # noqa: E402
+    block_means,
+    changed_share_inside,
+)
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchResult  # noqa: E402
 from stereo_fuzzy_perception.simulation.rendered_scenes import RenderedSceneSource  # noqa: E402
 from stereo_fuzzy_perception.simulation.synthetic_scenes import OBJECT_TYPES  # noqa: E402
@@ -103,7 +122,16 @@ def main() -> None:
     parser.add_argument('--randomized', action='store_true',
                         help="the randomized distribution's evaluation split instead")
     parser.add_argument('--point-stride', type=int, default=1, help='with --randomized')
+    parser.add_argument('--sequence', type=int, metavar='PAIRS_PER_SCENE',
+                        help="replay the chain benchmark's scenes, this many pairs each, "
+                        'through the tracker in one process instead (work per pair)')
+    parser.add_argument('--pairs', type=int, default=600, help='with --sequence')
+    parser.add_argument('--lag', type=int, default=2,
+                        help='with --sequence: pairs until a decision is seen')
     args = parser.parse_args()
+    if args.sequence:
+        sequence(args.sequence, args.pairs, args.lag)
+        return
     if args.bags:
         replay_bags()
         return
@@ -123,6 +151,7 @@ def main() -> None:
         bm = cv2.StereoBM_create(numDisparities=16 * -(-full_range[1] // 16), blockSize=9)
         bm.setMinDisparity(full_range[0])
         previous: SearchRegion | None = None
+        previous_blocks: np.ndarray | None = None
         for kind in OBJECT_TYPES:
             for seed in seeds[kind]:
                 frame = source.render(seed, kind)
@@ -160,7 +189,26 @@ def main() -> None:
                                            wrong.rectified.right)
                     row.update(wrong_mm=error_mm(other, target),
                                wrong_problem=wrong.region_problem)
+                    blocks = block_means(left)
+                    box = pipeline.rectifier.raw_box(frame.calibration, previous.roi)
+                    row['wrong_changed'] = changed_share_inside(
+                        blocks, previous_blocks, box,
+                        tracking.change_grey_levels) > tracking.change_share
+                    found_region = region_from_matches(
+                        full.disparity_map, previous, full.rectified, stride, full_range,
+                        tracking.margin_object_sizes)
+                    if found_region is not None:
+                        found = pipeline.process(left, right, frame.calibration,
+                                                 region=found_region)
+                        found_decided = decided if found.region_problem else chooser.decide(
+                            found.points, found.rectified.left, found.rectified.right)
+                        row.update(found_mm=error_mm(found_decided, target),
+                                   found_problem=found.region_problem,
+                                   found_ms=total_ms(found),
+                                   found_share=found_region.roi[2] * found_region.roi[3]
+                                   / left.size)
                 previous = region or previous
+                previous_blocks = block_means(left)
                 rows.append(row)
                 print(f'{kind} {seed}: {row}', file=sys.stderr)
     report(rows, args.tolerance_mm, stride, load)
@@ -197,6 +245,22 @@ def report(rows: list[dict[str, object]], tolerance: float, stride: int, load: f
               f'| {share(region)} / {mean_finite(region)} | {len(kept)} / {len(tracked)} '
               f'| {same} / {len(tracked)} | {len(wrong_kept)} / {len(wrong)}, '
               f'{share([float(row["wrong_mm"]) for row in wrong])} |')  # type: ignore[arg-type]
+    print(f"\n| object | scene changes seen in the previous region's blocks | region found in "
+          f'the matches / scenes | found region kept / found | whole image within '
+          f'{tolerance:g} mm | found region within {tolerance:g} mm (failed: whole image) | '
+          'same point (within 0.5 mm) |')
+    print('|---|---:|---:|---:|---:|---:|---:|')
+    for kind in (*OBJECT_TYPES, 'all'):
+        wrong = [row for row in rows if kind in ('all', row['kind']) and 'wrong_mm' in row]
+        found = [row for row in wrong if 'found_mm' in row]
+        found_kept = [row for row in found if not row['found_problem']]
+        same = sum(abs(float(row['found_mm']) - float(row['full_mm'])) <= 0.5  # type: ignore[arg-type]
+                   or row['found_mm'] == row['full_mm'] for row in found)
+        print(f'| {kind} | {sum(bool(row["wrong_changed"]) for row in wrong)} / {len(wrong)} '
+              f'| {len(found)} / {len(wrong)} | {len(found_kept)} / {len(found)} '
+              f'| {share([float(row["full_mm"]) for row in found])} '  # type: ignore[arg-type]
+              f'| {share([float(row["found_mm"]) for row in found])} '  # type: ignore[arg-type]
+              f'| {same} / {len(found)} |')
     kept_rows = [row for row in rows if 'region_mm' in row and not row['region_problem']]
     print('\n| stage time per pair, median [ms] | whole image | area search (kept regions) | '
           'StereoBM, whole image | region share of the image | disparities searched |')
@@ -207,6 +271,12 @@ def report(rows: list[dict[str, object]], tolerance: float, stride: int, load: f
               f'| {statistics.median(float(r["bm_ms"]) for r in rows):.1f} '  # type: ignore[arg-type]
               f'| {statistics.median(float(r["region_share"]) for r in kept_rows):.2f} '  # type: ignore[arg-type]
               f'| {statistics.median(int(r["region_disparities"]) for r in kept_rows):.0f} |')  # type: ignore[call-overload]
+    found_rows = [row for row in rows if 'found_mm' in row and not row['found_problem']]
+    if found_rows:
+        print(f'\nRegions found in the matches, kept: median stage time '
+              f'{statistics.median(float(r["found_ms"]) for r in found_rows):.1f} ms, '  # type: ignore[arg-type]
+              f'median share of the image '
+              f'{statistics.median(float(r["found_share"]) for r in found_rows):.2f}.')  # type: ignore[arg-type]
 
 
 def randomized(per_type: int, stride: int, tolerance: float) -> None:
@@ -284,7 +354,7 @@ def replay_bags() -> None:
     import dataclasses
 
     import yaml
-    from stereo_fuzzy_perception.core.matching.area_tracker import AreaTracker
+    from stereo_fuzzy_perception.core.matching.area_tracker import SCENE_CHANGED, AreaTracker
     from stereo_fuzzy_perception.core.matching.disparity_range import workspace_disparity_range
     from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
     from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
@@ -321,8 +391,13 @@ def replay_bags() -> None:
                                             disparity_range=full_range[1])
             whole = pipeline.process(left, right, calibration)
             decided = chooser.decide(whole.points, whole.rectified.left, whole.rectified.right)
-            plan = tracker.plan(stamp, calibration, pose, full_range)
-            if plan.region is not None:
+            plan = tracker.plan(stamp, calibration, pose, full_range, block_means(left),
+                                functools.partial(pipeline.rectifier.raw_box, calibration))
+            if plan.reason == SCENE_CHANGED:  # not matched in it: the whole image's point
+                tried += 1
+                same += 1
+                where[SCENE_CHANGED] = where.get(SCENE_CHANGED, 0) + 1
+            elif plan.region is not None:
                 tracked = pipeline.process(left, right, calibration, region=plan.region)
                 again = chooser.decide(tracked.points, tracked.rectified.left,
                                        tracked.rectified.right)
@@ -354,6 +429,92 @@ def replay_bags() -> None:
         print(f'| {bag.name} | {len(pairs)} | {where.get("kept", 0)} / {tried}, {same} / {tried} '
               f'| {own_kept} / {own_tried}, {spread} '
               f'| {", ".join(f"{key}: {count}" for key, count in sorted(where.items()))} |')
+
+
+SEQUENCE_OBJECTS = ('cubic_square', 'cylinder', 'cubic_rectangle', 'circle')
+"""The chain latency benchmark's scenes (render_scene seeds 100, 101, ... in this order)."""
+
+
+def sequence(pairs_per_scene: int, pairs: int, lag: int) -> None:
+    """Replay the chain benchmark's scene sequence through the tracker in one process; print
+    the work per pair by its place after a scene change, with and without issue #18's changes.
+    """
+    import dataclasses
+
+    from stereo_fuzzy_perception.core.matching.area_tracker import AreaTracker
+    from stereo_fuzzy_perception.core.matching.disparity_range import workspace_disparity_range
+    from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
+    from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
+    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+    from stereo_fuzzy_perception.simulation.scene_renderer import render_scene
+
+    load = os.getloadavg()[0]
+    stride = demo_point_stride()
+    frames = [render_scene(100 + index, kind, encoding='mono8')
+              for index, kind in enumerate(SEQUENCE_OBJECTS)]
+    rig = StereoRig()
+    pose = rig.world_from_left_camera()
+    area_config = AreaConfig()
+    chooser = BestPointChooser.create('fuzzy_fitted', area_config, rig)
+    calibration = frames[0].calibration
+    derived = workspace_disparity_range(calibration, pose, area_config.workspace_min,
+                                        area_config.workspace_max)
+    full_range = (derived.min_disparity, derived.disparity_range)
+    warm = StereoMatchingPipeline(
+        MatcherConfig(min_disparity=full_range[0], disparity_range=full_range[1]),
+        point_stride=stride).process(frames[0].left, frames[0].right, calibration)
+    chooser.decide(warm.points, warm.rectified.left, warm.rectified.right)  # kernels compiled
+    configs = {
+        'before (no block means, no regions from matches)': dataclasses.replace(
+            TrackingConfig(), detect_scene_change=False, regions_from_matches=False,
+            decision_wait_s=0.0),
+        'issue #18 defaults': dataclasses.replace(TrackingConfig(), decision_wait_s=0.0)}
+    print(f"\n### The chain benchmark's scenes in one process: {pairs} pairs at 30 Hz stamps, "
+          f'{pairs_per_scene} per scene, each decision seen {lag} pairs later (point stride '
+          f'{stride}; 1-min load {load:.1f})\n')
+    print('| tracking | whole image | matched twice | region from matches | mean work per pair '
+          '[ms]: 1st / 2nd / 3rd / 4th of a scene, the rest | p99 work [ms] |')
+    print('|---|---:|---:|---:|---|---:|')
+    for label, config in configs.items():
+        pipeline = StereoMatchingPipeline(
+            MatcherConfig(min_disparity=full_range[0], disparity_range=full_range[1]),
+            point_stride=stride)
+        tracker = AreaTracker(config)
+        pending: list[tuple[int, TrackedArea | None, float]] = []
+        work: dict[int, list[float]] = {}
+        every: list[float] = []
+        whole = twice = found = 0
+        for index in range(pairs):
+            frame = frames[(index // pairs_per_scene) % len(frames)]
+            stamp = index / 30.0
+            for item in [item for item in pending if item[0] <= index]:
+                tracker.observe(item[1], item[2])
+                pending.remove(item)
+            start = time.perf_counter()
+            blocks = block_means(frame.left) if config.detect_scene_change else None
+            plan = tracker.plan(stamp, frame.calibration, pose, full_range, blocks,
+                                functools.partial(pipeline.rectifier.raw_box, frame.calibration))
+            result = pipeline.process(frame.left, frame.right, frame.calibration,
+                                      region=plan.region)
+            if result.region_problem:
+                tracker.region_failed(result.region_problem, stamp)
+            if result.region is None:
+                tracker.matched_whole(result.disparity_map, stamp, result.rectified, stride,
+                                      full_range)
+            decided = chooser.decide(result.points, result.rectified.left,
+                                     result.rectified.right)
+            elapsed = 1e3 * (time.perf_counter() - start)
+            whole += int(result.region is None)
+            twice += int(bool(result.region_problem))
+            found += int(plan.from_matches and result.region is not None)
+            area = tracked_area(decided)
+            pending.append((index + lag, None if area is None
+                            else dataclasses.replace(area, stamp_s=stamp), stamp))
+            work.setdefault(min(index % pairs_per_scene, 4), []).append(elapsed)
+            every.append(elapsed)
+        means = ' / '.join(f'{statistics.fmean(work[place]):.1f}' for place in range(4))
+        print(f'| {label} | {whole} | {twice} | {found} | {means}, '
+              f'{statistics.fmean(work[4]):.1f} | {float(np.percentile(every, 99)):.1f} |')
 
 
 if __name__ == '__main__':

@@ -14,9 +14,10 @@ stamp per pair = its publish time) from a few rendered scenes on a timer, each s
 tracking of the previous decision's area; 30 at 30 Hz: an object that stays a second, as a live
 rig sees it). A second node subscribes best_point, best_point/decision and /diagnostics.
 --no-tracking turns correlation_node's tracking off (roi.track false: every pair matched on the
-whole image), --decision-wait-s sets how long the pair after a failed region waits for that
-pair's decision (roi.decision_wait_s; 0 = matched on the whole image at once); where pairs were
-matched is reported from its /diagnostics.
+whole image), --no-scene-change-detection its comparison of block means before matching
+(roi.detect_scene_change false), --decision-wait-s sets how long the pair after a failed region
+waits for that pair's decision (roi.decision_wait_s; 0 = matched on the whole image at once);
+where pairs were matched is reported from its /diagnostics.
 
 Latency = arrival time in this process - pair header stamp (both CLOCK_REALTIME). A decision
 (best_point/decision) is published for every pair the correlation node processes; a best point
@@ -70,6 +71,10 @@ CORRELATION_COUNTERS = ('pairs received', 'pairs processed', 'dropped superseded
                         'pairs matched in the tracked area')
 WHOLE_IMAGE_PREFIX = 'pairs matched whole: '
 DECISION_WAIT_PREFIX = 'decisions waited for after a failed region: '
+# correlation_node's counts of its block-mean comparison and of the regions found in matches
+TRACKING_COUNTERS = ('periodic whole images skipped, image unchanged outside the area',
+                     'regions found in whole-image matches',
+                     'pairs matched in a region found in whole-image matches')
 SCENE_OBJECTS = ('cubic_square', 'cylinder', 'cubic_rectangle', 'circle')
 
 
@@ -141,6 +146,7 @@ class PairPublisher:
         self.publish_ms: list[float] = []
         self._timer: Any = None
         self._next = 0
+        self.first_pair = 0
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self.executor.spin, name='pair_publisher',
@@ -156,6 +162,7 @@ class PairPublisher:
         self.stop()
         self.published_ns = []
         self.publish_ms = []
+        self.first_pair = self._next  # pairs of a scene are counted across starts
         self._timer = self.node.create_timer(1.0 / rate_hz, self._publish_pair)
 
     def stop(self) -> None:
@@ -290,6 +297,8 @@ class Measurement:
     decisions: int
     best_points: int
     decision_latency_ms: list[float]
+    decided_index: list[int]  # each decided pair's index among those published
+    first_pair: int  # the publisher's count of pairs before the first one measured
     best_point_latency_ms: list[float]
     sync: dict[str, int]
     correlation: dict[str, int]
@@ -371,13 +380,16 @@ def measure(monitor: ChainMonitor, publisher: PairPublisher, group: ProcessGroup
         publish_ms_p99=percentile(publisher.publish_ms, 99),
         decisions=len(decided), best_points=len(chosen),
         decision_latency_ms=[(monitor.decisions[s] - s) * 1e-6 for s in decided],
+        decided_index=[index for index, stamp in enumerate(published)
+                       if stamp in monitor.decisions],
+        first_pair=publisher.first_pair,
         best_point_latency_ms=[(monitor.best_points[s] - s) * 1e-6 for s in chosen],
         sync=counter_deltas(before[SYNC_STATUS], after[SYNC_STATUS], SYNC_COUNTERS),
         correlation=counter_deltas(
             before[CORRELATION_STATUS], after[CORRELATION_STATUS],
-            CORRELATION_COUNTERS + tuple(key for key in after[CORRELATION_STATUS]
-                                         if key.startswith((WHOLE_IMAGE_PREFIX,
-                                                            DECISION_WAIT_PREFIX)))),
+            CORRELATION_COUNTERS + TRACKING_COUNTERS
+            + tuple(key for key in after[CORRELATION_STATUS]
+                    if key.startswith((WHOLE_IMAGE_PREFIX, DECISION_WAIT_PREFIX)))),
         fuzzy=counter_deltas(before[FUZZY_STATUS], after[FUZZY_STATUS],
                              ('decisions made', 'decisions refused')),
         correlation_mean_ms=correlation_mean_ms(before[CORRELATION_STATUS],
@@ -426,8 +438,9 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
     print('\n### Where correlation_node matched the pairs (tracked area, or the whole image and '
           'why)\n')
     print('| rate [Hz] | tracked area | whole image (reason: pairs) | after a failed region, '
-          "that pair's decision waited for (outcome: pairs) |")
-    print('|---:|---:|---|---|')
+          "that pair's decision waited for (outcome: pairs) | periodic skipped (unchanged) | "
+          'regions found in whole-image matches / pairs matched in them |')
+    print('|---:|---:|---|---|---:|---:|')
     for r in results:
         whole = ', '.join(f'{key[len(WHOLE_IMAGE_PREFIX):]}: {count}'
                           for key, count in r.correlation.items()
@@ -436,7 +449,8 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
                           for key, count in r.correlation.items()
                           if key.startswith(DECISION_WAIT_PREFIX))
         print(f'| {r.rate_hz:g} | {r.correlation["pairs matched in the tracked area"]} '
-              f'| {whole or "-"} | {waits or "-"} |')
+              f'| {whole or "-"} | {waits or "-"} | {r.correlation[TRACKING_COUNTERS[0]]} '
+              f'| {r.correlation[TRACKING_COUNTERS[1]]} / {r.correlation[TRACKING_COUNTERS[2]]} |')
 
     stages = list(dict.fromkeys(stage for r in results for stage in r.stage_ms))  # node order
     print('\n### Correlation node processing time [ms] (mean over the measurement; stages '
@@ -478,11 +492,14 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
 # --- main ---------------------------------------------------------------------------------------
 
 def node_arguments(executable: str, tracking: bool = True,
-                   decision_wait_s: float | None = None) -> list[str]:
+                   decision_wait_s: float | None = None,
+                   scene_change: bool = True) -> list[str]:
     """Return the --ros-args of a node: the demo parameter file, or the fallback overrides."""
     overrides: tuple[str, ...] = LIVE_OVERRIDES.get(executable, ())
     if executable == 'correlation_node' and not tracking:
         overrides = (*overrides, 'roi.track:=false')
+    if executable == 'correlation_node' and not scene_change:
+        overrides = (*overrides, 'roi.detect_scene_change:=false')
     if executable == 'correlation_node' and decision_wait_s is not None:
         overrides = (*overrides, f'roi.decision_wait_s:={decision_wait_s!r}')
     if DEMO_PARAMS.exists():
@@ -512,7 +529,8 @@ def run(args: argparse.Namespace) -> list[Measurement]:
             for executable in NODES:
                 group.start_node(PACKAGE, executable,
                                  *node_arguments(executable, not args.no_tracking,
-                                                 args.decision_wait_s))
+                                                 args.decision_wait_s,
+                                                 not args.no_scene_change_detection))
             wait_for(lambda: publisher.matched() and monitor.matched(), 60.0,
                      "the chain's subscriptions and publishers to match", monitor.spin, group)
             progress('publishing until the first decision (kernels warm)')
@@ -554,9 +572,12 @@ def main() -> None:
                         help="turn correlation_node's tracking of the decided area off")
     parser.add_argument('--decision-wait-s', type=float, metavar='S',
                         help="correlation_node's roi.decision_wait_s (default: the node's)")
+    parser.add_argument('--no-scene-change-detection', action='store_true',
+                        help="turn correlation_node's roi.detect_scene_change off")
     parser.add_argument('--log-dir', help="where the nodes' logs go (default: a temp folder)")
     parser.add_argument('--latencies', metavar='CSV',
-                        help='also write every decided pair: rate, index, decision latency [ms]')
+                        help='also write every decided pair: rate, index, decision latency [ms], '
+                        'index among the published pairs, its place in its scene (0 = first)')
     args = parser.parse_args()
     load_before = os.getloadavg()[0]
     results = run(args)
@@ -568,13 +589,18 @@ def main() -> None:
                + ('off' if args.no_tracking else 'on'))
     if args.decision_wait_s is not None:
         params += f', roi.decision_wait_s {args.decision_wait_s:g}'
+    if args.no_scene_change_detection:
+        params += ', roi.detect_scene_change false'
     print_tables(results, params, machine)
     if args.latencies:
         with open(args.latencies, 'w', encoding='utf-8') as output:
-            output.write('rate_hz,pair,decision_latency_ms\n')
+            output.write('rate_hz,pair,decision_latency_ms,published,pair_of_scene\n')
             for r in results:
-                output.writelines(f'{r.rate_hz:g},{index},{latency:.2f}\n'
-                                  for index, latency in enumerate(r.decision_latency_ms))
+                output.writelines(
+                    f'{r.rate_hz:g},{index},{latency:.2f},{published},'
+                    f'{(r.first_pair + published) % args.pairs_per_scene}\n'
+                    for index, (latency, published) in enumerate(
+                        zip(r.decision_latency_ms, r.decided_index, strict=True)))
 
 
 if __name__ == '__main__':

@@ -32,14 +32,14 @@ BLOCK_DISPARITY = 10  # [px]
 TRACKING = dict(OVERHEAD_RIG, window_size=9, **{'roi.margin_object_sizes': 0.25})
 
 
-def block_pair(stamp_sec: int):
+def block_pair(stamp_sec: int, block: tuple[int, int, int, int] = BLOCK):
     """The floor pair with the block's top face in it (left x matches right x - 10 there)."""
     from stereo_fuzzy_perception.nodes.conversions import array_to_image
 
     pair = stereo_pair(stamp_sec=stamp_sec)
     left = np.frombuffer(bytes(pair.left_image.data), np.uint8).reshape(HEIGHT, WIDTH).copy()
     right = np.frombuffer(bytes(pair.right_image.data), np.uint8).reshape(HEIGHT, WIDTH).copy()
-    u, v, width, height = BLOCK
+    u, v, width, height = block
     texture = np.random.default_rng(5).integers(40, 216, (height, width), dtype=np.uint8)
     left[v:v + height, u:u + width] = texture
     right[v:v + height, u - BLOCK_DISPARITY:u - BLOCK_DISPARITY + width] = texture
@@ -169,7 +169,9 @@ def test_an_object_that_left_its_region_is_matched_on_the_whole_image(tracking):
 
 
 def test_the_pair_after_a_failed_region_is_matched_in_the_area_its_decision_found(tracking):
-    h = tracking(**{'roi.max_age_s': 5.0})  # pairs 1 s apart
+    # pairs 1 s apart; the block comes back into its region between the pairs, which the
+    # block means would see as a scene change (test_a_region_whose_image_changed_...)
+    h = tracking(**{'roi.max_age_s': 5.0, 'roi.detect_scene_change': False})
     h.decide(block_decision(h.node, stamp_sec=2))
     h.publish_and_wait_processed(stereo_pair(stamp_sec=2))  # the block left: whole image
     assert h.node.searched['object_lost'] == 1, dict(h.node.searched)
@@ -229,3 +231,54 @@ def test_a_malformed_or_pointless_decision_is_not_tracked_and_the_node_keeps_mat
                'the node to drop the tracked area', h.executor)
     h.publish_and_wait_processed(block_pair(stamp_sec=1))
     assert h.node.searched['no_area'] == 1 and h.node.searched['area'] == 0
+
+
+MOVED_BLOCK = (108, 64, 40, 40)  # the block put down elsewhere, outside the first one's region
+
+
+def whole_after_region(node) -> int:
+    """Pairs matched again on the whole image after their region failed its check."""
+    from stereo_fuzzy_perception.core.matching.area_search import REGION_PROBLEMS
+
+    return sum(node.searched[problem] for problem in REGION_PROBLEMS)
+
+
+@pytest.mark.parametrize('from_matches', [True, False], ids=['found', 'not-looked-for'])
+def test_after_a_failed_region_the_next_pair_is_matched_in_a_region_its_matches_gave(
+        tracking, from_matches):
+    h = tracking(**{'roi.max_age_s': 5.0, 'roi.decision_wait_s': 0.0,
+                    'roi.regions_from_matches': from_matches})
+    h.decide(block_decision(h.node, stamp_sec=1))
+    h.publish_and_wait_processed(block_pair(stamp_sec=2, block=MOVED_BLOCK))
+    assert whole_after_region(h.node) == 1, dict(h.node.searched)
+    # no decision on that pair arrives: the next one is matched where its matches showed the
+    # block, or (not looked for) on the whole image
+    h.publish_and_wait_processed(block_pair(stamp_sec=3, block=MOVED_BLOCK))
+    if not from_matches:
+        assert h.node.searched['found_in_matches'] == 0
+        assert h.node.searched['no_area'] == 1, dict(h.node.searched)
+        return
+    assert h.node.searched['found_in_matches'] == 1
+    assert h.node.searched['area_from_matches'] == 1, dict(h.node.searched)
+    assert h.node.searched['area'] == 1 and whole_after_region(h.node) == 1
+    x, y, width, height = h.node.tracker._reference.roi
+    u, v, block_width, block_height = MOVED_BLOCK
+    assert x < u and y < v and x + width >= u + block_width and y + height >= v + block_height
+    assert width * height < WIDTH * HEIGHT / 2
+    wait_until(lambda: h.diagnostics and h.latest_values().get(
+        'pairs matched in a region found in whole-image matches') == '1', TIMEOUT,
+        'diagnostics with the found region', h.executor)
+
+
+def test_a_region_whose_image_changed_goes_whole_without_being_matched_in_it(tracking):
+    h = tracking(**{'roi.max_age_s': 5.0, 'roi.decision_wait_s': 0.0,
+                    'roi.regions_from_matches': False})
+    h.decide(block_decision(h.node, stamp_sec=1))
+    h.publish_and_wait_processed(block_pair(stamp_sec=1))
+    assert h.node.searched['area'] == 1, dict(h.node.searched)
+    h.publish_and_wait_processed(block_pair(stamp_sec=2, block=MOVED_BLOCK))
+    assert h.node.searched['scene_changed'] == 1, dict(h.node.searched)
+    assert whole_after_region(h.node) == 0  # never matched in the old region
+    assert h.node.tracker._area is None
+    wait_until(lambda: h.diagnostics and h.latest_values().get(
+        'pairs matched whole: scene_changed') == '1', TIMEOUT, 'diagnostics', h.executor)

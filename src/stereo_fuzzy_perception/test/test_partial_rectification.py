@@ -12,6 +12,7 @@ from stereo_fuzzy_perception.core.matching.rectification import (
     StereoRectifier,
     grown_block,
     missing_blocks,
+    rectification_maps,
 )
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
 from stereo_fuzzy_perception.core.matching.window_matcher import (
@@ -145,3 +146,24 @@ def test_continuing_on_other_arrays_rectifies_everything_again():
     expected = StereoRectifier().rectify(left, right, calibration)
     np.testing.assert_array_equal(continued[0], expected[0])
     np.testing.assert_array_equal(continued[1], expected[1])
+
+
+@given(st.integers(0, WIDTH - 2), st.integers(0, HEIGHT - 2), st.integers(2, WIDTH),
+       st.integers(2, HEIGHT))
+@settings(max_examples=25, deadline=None)
+def test_the_raw_box_holds_every_raw_pixel_a_rectified_roi_reads(x, y, width, height):
+    calibration = verged_calibration()
+    rectifier = StereoRectifier()
+    box = rectifier.raw_box(calibration, (x, y, width, height))
+    maps = rectification_maps(calibration.left)
+    assert maps.map_x is not None
+    x1, y1 = min(calibration.left.width, x + width), min(calibration.left.height, y + height)
+    read = maps.map_x[y:y1, x:x1].reshape(-1, 2).astype(int)  # integer parts of (x, y)
+    inside = ((read[:, 0] >= 0) & (read[:, 1] >= 0) & (read[:, 0] < calibration.left.width)
+              & (read[:, 1] < calibration.left.height))
+    read = read[inside]
+    x0_box, y0_box, x1_box, y1_box = box
+    if len(read):
+        assert x0_box <= read[:, 0].min() and y0_box <= read[:, 1].min()
+        assert x1_box >= min(calibration.left.width, read[:, 0].max() + 1)
+        assert y1_box >= min(calibration.left.height, read[:, 1].max() + 1)

@@ -40,6 +40,7 @@ from stereo_fuzzy_perception.core.matching.area_tracker import (
 )
 from stereo_fuzzy_perception.core.matching.disparity_range import DisparityRangeError
 from stereo_fuzzy_perception.core.matching.rectification import RectificationError
+from stereo_fuzzy_perception.core.matching.scene_change import block_means
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
 from stereo_fuzzy_perception.core.matching.window_matcher import MatcherInputError, warm_up
 from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
@@ -63,6 +64,9 @@ DROP_REASONS = ('superseded', 'image_too_large', 'calibration', 'size_mismatch',
                 'matcher_input', 'opencv', 'internal')
 DECISION_TOPIC = topic_names.DECISION
 POSE_MISMATCH = 'pose_mismatch'
+PERIODIC_SKIPPED = 'periodic_unchanged'
+FROM_MATCHES = 'area_from_matches'
+FOUND_IN_MATCHES = 'found_in_matches'
 POSE_TOLERANCE_M = 0.005
 """Largest distance between a decision's best point in the camera frame and its world point
 placed with this node's camera pose; more means the two nodes place the camera differently,
@@ -82,7 +86,9 @@ class CorrelationNode(Node):
         # decisions' areas in the image.
         self._pose: tuple[StereoCalibration, np.ndarray | None] | None = None
         self.searched: Counter[str] = Counter(dict.fromkeys(
-            ('area', *FULL_FRAME_REASONS, *REGION_PROBLEMS, POSE_MISMATCH), 0))
+            ('area', *FULL_FRAME_REASONS, *REGION_PROBLEMS, POSE_MISMATCH, PERIODIC_SKIPPED,
+             FROM_MATCHES, FOUND_IN_MATCHES),
+            0))
         # After a failed region, the next pair waits for that pair's decision (roi.*)
         self.decision_waits: Counter[str] = Counter({'arrived': 0, 'timed out': 0})
         # disparity_range 0: the range derived for the last calibration seen
@@ -176,7 +182,8 @@ class CorrelationNode(Node):
             self.get_logger().error(f'decision not tracked: {error!r}',
                                     throttle_duration_sec=self.settings.error_log_period_s)
 
-    def _plan(self, pair: StereoPair, calibration: StereoCalibration) -> SearchPlan:
+    def _plan(self, pair: StereoPair, left: np.ndarray,
+              calibration: StereoCalibration) -> SearchPlan:
         """Return where this pair is matched (the tracked area's region or the whole image)."""
         known = self._pose
         if known is None or not (known[0].left.same_as(calibration.left)
@@ -192,8 +199,13 @@ class CorrelationNode(Node):
             with self._condition:
                 self.decision_waits['arrived' if waited else 'timed out'] += 1
         config = self.pipeline.config
-        return self.tracker.plan(stamp_seconds(pair.header.stamp), calibration, known[1],
-                                 (config.min_disparity, config.disparity_range))
+        detect = self.tracker.config.detect_scene_change
+        rectifier = self.pipeline.rectifier
+        return self.tracker.plan(
+            stamp_seconds(pair.header.stamp), calibration, known[1],
+            (config.min_disparity, config.disparity_range),
+            blocks=block_means(left) if detect else None,
+            raw_box=lambda roi: rectifier.raw_box(calibration, roi))
 
     # --- worker -------------------------------------------------------------------------------
 
@@ -238,16 +250,20 @@ class CorrelationNode(Node):
                 raise RectificationError(
                     f'left image is {left.shape[1]}x{left.shape[0]} but right image is '
                     f'{right.shape[1]}x{right.shape[0]}')
-            plan = self._plan(pair, calibration)
+            plan = self._plan(pair, left, calibration)
             # A disparity subscriber gets every row; otherwise only the rows that
             # point_stride publishes are matched.
             result = self.pipeline.process(
                 left, right, calibration,
                 full_disparity=self.disparity_publisher.get_subscription_count() > 0,
                 region=plan.region)
+            stamp_s = stamp_seconds(pair.header.stamp)
             if result.region_problem:
-                self.tracker.region_failed(result.region_problem,
-                                           stamp_seconds(pair.header.stamp))
+                self.tracker.region_failed(result.region_problem, stamp_s)
+            found = result.region is None and self.tracker.matched_whole(
+                result.disparity_map, stamp_s, result.rectified, self.pipeline.point_stride,
+                (result.disparity_map.config.min_disparity,
+                 result.disparity_map.config.disparity_range)) is not None
         except ImageSizeError as error:
             self._drop('image_too_large', str(error))
             return
@@ -290,6 +306,11 @@ class CorrelationNode(Node):
         timings = dict(result.timings_ms, publish=1e3 * (time.perf_counter() - start))
         with self._condition:
             self.searched[result.region_problem or plan.reason or 'area'] += 1
+            if plan.periodic_skipped and result.region is not None:
+                self.searched[PERIODIC_SKIPPED] += 1
+            if plan.from_matches and result.region is not None:
+                self.searched[FROM_MATCHES] += 1
+            self.searched[FOUND_IN_MATCHES] += int(found)
             self.processed += 1
             self.last_timings_ms = timings
             self.last_points = len(result.points)
@@ -342,6 +363,11 @@ class CorrelationNode(Node):
                 **{f'pairs matched whole: {reason}': self.searched[reason]
                    for reason in (*FULL_FRAME_REASONS, *REGION_PROBLEMS)},
                 f'decisions not tracked: {POSE_MISMATCH}': self.searched[POSE_MISMATCH],
+                'periodic whole images skipped, image unchanged outside the area':
+                    self.searched[PERIODIC_SKIPPED],
+                'regions found in whole-image matches': self.searched[FOUND_IN_MATCHES],
+                'pairs matched in a region found in whole-image matches':
+                    self.searched[FROM_MATCHES],
                 **{f'decisions waited for after a failed region: {outcome}': count
                    for outcome, count in self.decision_waits.items()},
                 **self.pair_sequence.report(topic_names.PAIR),

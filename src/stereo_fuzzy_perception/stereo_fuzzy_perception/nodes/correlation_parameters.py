@@ -73,13 +73,34 @@ class RoiSettings:
         "the whole image), the next pair waits this long at most for that pair's decision, to "
         'be matched in its area rather than on the whole image [s]; 0 does not wait', 0.0, 1.0)
 
+    detect_scene_change: bool = parameter(
+        _TRACKING.detect_scene_change, "Compare each pair's 8x8 block means of the left image "
+        "with earlier pairs' before matching: a region whose blocks changed since the previous "
+        'pair (more than change_share of them) is not tried, the pair goes to the whole image at '
+        'once; a periodic whole-image pair whose image is unchanged outside the region since '
+        'the last whole-image pair is matched in the region')
+    change_grey_levels: float = parameter(
+        _TRACKING.change_grey_levels, "Change of a block's mean that counts as a scene change, "
+        'after the median change of all blocks is taken off [grey levels, 8-bit]', 1.0, 255.0)
+    change_share: float = parameter(
+        _TRACKING.change_share, "Share of the region's blocks changed since the previous pair "
+        'above which the region is not tried [-]', 0.0, 1.0)
+
+    regions_from_matches: bool = parameter(
+        _TRACKING.regions_from_matches, 'While no area is tracked (after a failed or changed '
+        'region), find a region around the one object standing out of the surface in a '
+        "whole-image pair's own matches and match the next pairs in it (checked as any region) "
+        'until a decision arrives, instead of waiting for that decision')
+
     def tracking_config(self) -> TrackingConfig:
         """Return the tracking settings (tracking only while the area is the whole image)."""
         return TrackingConfig(
             enabled=self.track and (self.width == 0 or self.height == 0),
             full_frame_every=self.full_frame_every, max_age_s=self.max_age_s,
             margin_object_sizes=self.margin_object_sizes, margin_m=self.margin_m,
-            decision_wait_s=self.decision_wait_s)
+            decision_wait_s=self.decision_wait_s, detect_scene_change=self.detect_scene_change,
+            change_grey_levels=self.change_grey_levels, change_share=self.change_share,
+            regions_from_matches=self.regions_from_matches)
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,12 @@ than the tracked object), if too few stand out inside (the object left) or if th
 lie away from where the top face was (it moved), the pair is matched again on the whole image:
 a wrong region costs time, not a wrong point.
 
-ROS-free: numpy only.
+Before the decision on a pair matched on the whole image arrives, `region_from_matches` finds
+a region in that pair's own matches: those standing out of the surface plane the last region
+knew (the work surface does not move when the object changes), when they form one object,
+grown by the same margins. It is checked like any other region.
+
+ROS-free: numpy and OpenCV only.
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
@@ -116,6 +122,8 @@ class SearchRegion:
         standing_px: Disparity above the surface's from which a match stands out [px].
         top_face_px: Pixels of the top face projected into the left image [px^2].
         top_centre: (u, v) of the top face's projected centre [px].
+        noise_px: Disparity above the surface's that only noise reaches (NOISE_SIGMAS of the
+            surface noise) [px]; 0 when unknown.
     """
 
     roi: tuple[int, int, int, int]
@@ -125,6 +133,7 @@ class SearchRegion:
     standing_px: float
     top_face_px: float
     top_centre: tuple[float, float] = (math.nan, math.nan)
+    noise_px: float = 0.0
 
 
 def _rectified_from_world(calibration: StereoCalibration,
@@ -236,10 +245,11 @@ def search_region(area: TrackedArea, calibration: StereoCalibration,
     top = points @ transform[:3, :3].T + transform[:3, 3]
     top_u, top_v, top_disparity = _project(calibration, top)
     excess = float(np.median(top_disparity - (plane[0] * top_u + plane[1] * top_v + plane[2])))
-    standing = max(STANDING_SHARE * excess, NOISE_SIGMAS * area.disparity_sigma_px)
+    noise = NOISE_SIGMAS * area.disparity_sigma_px
+    standing = max(STANDING_SHARE * excess, noise)
     return SearchRegion((x0, y0, x1 - x0, y1 - y0), low, high - low + 1, plane, standing,
                         _quadrilateral_area(top_u, top_v),
-                        (float(top_u.mean()), float(top_v.mean())))
+                        (float(top_u.mean()), float(top_v.mean())), noise)
 
 
 def _quadrilateral_area(u: np.ndarray, v: np.ndarray) -> float:
@@ -296,3 +306,84 @@ def region_problem(disparity_map: DisparityMap, region: SearchRegion,
                 region.top_face_px):
         return OBJECT_MOVED
     return None
+
+
+MIN_FOUND_POINTS = 12
+"""Fewest standing matches (at the point stride) that make an object in region_from_matches."""
+
+OTHER_OBJECT_SHARE = 0.25
+"""A second group of standing matches this share of the largest one's size is another object:
+region_from_matches then gives no region (the fuzzy stage chooses between them) [-]."""
+
+
+def region_from_matches(disparity_map: DisparityMap, reference: SearchRegion,
+                        calibration: StereoCalibration, point_stride: int,
+                        full_range: tuple[int, int],
+                        margin_object_sizes: float) -> SearchRegion | None:
+    """Return a region around the one object standing out of the surface in whole-image matches.
+
+    Args:
+        disparity_map: A pair matched on the whole image (at least the point stride's rows).
+        reference: An earlier region of the same rig: its surface plane and its `noise_px`
+            (its `standing_px` when that is unknown) tell which matches stand out of the work
+            surface, whatever the height of the object it was made for.
+        calibration: The rectified calibration (P of both cameras).
+        point_stride: Rows and columns the points keep.
+        full_range: (min_disparity, disparity_range) of the whole-image search [px].
+        margin_object_sizes: Margin on each side, in the object's extents in the image [-].
+
+    Returns:
+        The region (its check's figures from the standing matches), or None when fewer than
+        MIN_FOUND_POINTS stand out, when they form more than one object, or when the region's
+        disparities leave the whole-image range.
+    """
+    height, width = disparity_map.disparity.shape
+    rows = np.arange(0, height, point_stride)
+    columns = np.arange(0, width, point_stride)
+    status = disparity_map.status[np.ix_(rows, columns)]
+    disparity = disparity_map.disparity[np.ix_(rows, columns)]
+    a, b, c = reference.surface_plane
+    surface = a * columns[None, :] + b * rows[:, None] + c
+    threshold = reference.noise_px if reference.noise_px > 0.0 else reference.standing_px
+    standing = (status == MatchStatus.VALID) & (
+        np.nan_to_num(disparity - surface, nan=-np.inf) > threshold)
+    if np.count_nonzero(standing) < MIN_FOUND_POINTS:
+        return None
+    # groups of standing matches, across one missing match
+    grown = cv2.dilate(standing.astype(np.uint8), np.ones((3, 3), np.uint8))
+    _, labels = cv2.connectedComponents(grown, connectivity=8)
+    sizes = np.bincount(labels[standing])
+    sizes[0] = 0
+    order = np.argsort(sizes)[::-1]
+    largest = int(order[0])
+    if sizes[largest] < MIN_FOUND_POINTS or (
+            len(order) > 1 and sizes[order[1]] >= OTHER_OBJECT_SHARE * sizes[largest]):
+        return None
+    found_v, found_u = np.nonzero(standing & (labels == largest))
+    u, v = columns[found_u].astype(float), rows[found_v].astype(float)
+    found_disparity = disparity[found_v, found_u].astype(float)
+    extent = max(float(u.max() - u.min()), float(v.max() - v.min()), float(point_stride))
+    margin = margin_object_sizes * extent + point_stride
+    x0, x1 = max(0, math.floor(u.min() - margin)), min(width, math.ceil(u.max() + margin) + 1)
+    y0, y1 = max(0, math.floor(v.min() - margin)), min(height, math.ceil(v.max() + margin) + 1)
+    left_p = np.asarray(calibration.left.P, dtype=float)
+    right_p = np.asarray(calibration.right.P, dtype=float)
+    f_baseline = left_p[0, 3] - right_p[0, 3]
+    shift = left_p[0, 2] - right_p[0, 2]
+    corners_u = np.array([x0, x1 - 1, x0, x1 - 1], float)
+    corners_v = np.array([y0, y0, y1 - 1, y1 - 1], float)
+    corner_surface = a * corners_u + b * corners_v + c
+    # the surface SURFACE_BELOW_M lower, as search_region's box reaches (depth f B / (d - shift))
+    lowered = corner_surface - (corner_surface - shift) ** 2 * SURFACE_BELOW_M / abs(f_baseline)
+    top = float(found_disparity.max())
+    excess = top - float(np.median(a * u + b * v + c))
+    full_low, full_count = full_range
+    low = max(full_low, math.floor(float(lowered.min())) - MARGIN_PX)
+    high = min(full_low + full_count - 1,
+               math.ceil(top + max(0.0, margin_object_sizes * excess)) + MARGIN_PX)
+    if high < low or x1 - x0 < 2 or y1 - y0 < 2:
+        return None
+    return SearchRegion((x0, y0, x1 - x0, y1 - y0), low, high - low + 1,
+                        reference.surface_plane, threshold,
+                        float(len(u)) * point_stride ** 2,
+                        (float(np.median(u)), float(np.median(v))), reference.noise_px)

@@ -182,6 +182,35 @@ class StereoRectifier:
                 self.map_builds += 1
             return self._maps, self._rectified
 
+    def raw_box(self, calibration: StereoCalibration, roi: tuple[int, int, int, int]
+                ) -> tuple[int, int, int, int]:
+        """Return the box (x0, y0, x1, y1) of the raw left image a rectified ROI is made from.
+
+        Args:
+            calibration: The pair's calibration.
+            roi: (x, y, width, height) in the left rectified image [px].
+
+        Returns:
+            The smallest box holding every raw pixel the ROI's border pixels interpolate from
+            (a rectification map is smooth: its extremes over a rectangle lie on the border),
+            clipped to the image (stop values exclusive) [px].
+
+        Raises:
+            CalibrationError: When the calibration is unusable.
+        """
+        (left_maps, _), _ = self._maps_for(calibration)
+        width, height = calibration.left.width, calibration.left.height
+        x, y, roi_width, roi_height = roi
+        x0, y0 = max(0, x), max(0, y)
+        x1, y1 = min(width, x + roi_width), min(height, y + roi_height)
+        if left_maps.map_x is None or x1 <= x0 or y1 <= y0:
+            return x0, y0, x1, y1
+        block = left_maps.map_x[y0:y1, x0:x1]  # integer parts of (x, y)
+        raw = np.concatenate([block[0], block[-1], block[:, 0], block[:, -1]]).astype(np.int32)
+        low, high = raw.min(axis=0), raw.max(axis=0)
+        return (max(0, int(low[0])), max(0, int(low[1])),
+                min(width, int(high[0]) + 2), min(height, int(high[1]) + 2))
+
     @staticmethod
     def check_sizes(left: np.ndarray, right: np.ndarray,
                       calibration: StereoCalibration) -> None:
