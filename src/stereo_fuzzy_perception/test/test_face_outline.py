@@ -76,8 +76,8 @@ def test_a_stray_match_at_the_tops_height_does_not_widen_the_outline():
     spoiled.u_left[-1] += 30.0
     spoiled.u_right[-1] += 30.0
     spoiled.xyz = spoiled.xyz.copy()
-    spoiled.xyz[-1] *= 1.0  # the same depth: the ray moves with the column below
     depth = float(spoiled.xyz[-1, 2])
+    # the same depth, on the ray of its new column
     focal, cx = float(left.P[0, 0]), float(left.P[0, 2])
     rectified = np.asarray(left.R) @ spoiled.xyz[-1]
     rectified[0] = (spoiled.u_left[-1] - cx) / focal * rectified[2]
