@@ -32,6 +32,7 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     image_regions,
     on_pixel_grid,
     smoothed_on_grid,
+    square_cells,
 )
 from stereo_fuzzy_perception.core.best_point.work_surface import (
     INLIER_SIGMAS,
@@ -360,7 +361,8 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                  & (world[2] >= config.workspace_min[2]))
     labels, regions = image_regions(u_left, v_left, candidate, step)
     fewest = max(config.min_points, math.ceil(MIN_OBJECT_AREA_PX / step ** 2))
-    square_points = (config.smoothing_px / step) ** 2
+    # Matches in one averaging square of smoothing_px: its share of the area test's count.
+    square_points = float(square_cells(step, config.smoothing_px) ** 2)
     found = choose_object(labels, regions, z_scores, heights, sigma, config.object_sigmas,
                           OBJECT_TOP_SIGMAS, fewest, square_points, config.area_top_sigmas)
     if found.label == 0:

@@ -83,6 +83,14 @@ def _grid_cells(u: np.ndarray, v: np.ndarray, step: float) -> tuple[np.ndarray, 
     return row * shape[1] + column, shape
 
 
+def square_cells(step: float, size_px: float) -> int:
+    """Return the side [cells] of the averaging square of size_px on a grid of spacing step.
+
+    Odd and at least one cell, so that the square is centred on its point.
+    """
+    return max(1, int(round(size_px / step)) | 1)
+
+
 def smoothed_on_grid(u: np.ndarray, v: np.ndarray, values: np.ndarray, step: float,
                      size_px: float) -> np.ndarray:
     """Return each point's mean of `values` over the matches within a square of size_px.
@@ -95,7 +103,7 @@ def smoothed_on_grid(u: np.ndarray, v: np.ndarray, values: np.ndarray, step: flo
         size_px: Side of the averaging square [px] (at least one cell).
     """
     cells, shape = _grid_cells(u, v, step)
-    size = max(1, int(round(size_px / step)) | 1)
+    size = square_cells(step, size_px)
     total = ndimage.uniform_filter(np.bincount(cells, weights=values, minlength=shape[0]
                                                * shape[1]).reshape(shape), size, mode='constant')
     count = ndimage.uniform_filter(np.bincount(cells, minlength=shape[0] * shape[1]).astype(
@@ -118,7 +126,7 @@ def grown_region(u: np.ndarray, v: np.ndarray, member: np.ndarray, step: float,
     cells, shape = _grid_cells(u, v, step)
     grid = np.zeros(shape[0] * shape[1], dtype=bool)
     grid[cells[member]] = True
-    size = max(1, int(round(size_px / step)) | 1)
+    size = square_cells(step, size_px)
     grown = ndimage.maximum_filter(grid.reshape(shape), size, mode='constant')
     inside: np.ndarray = grown.reshape(-1)[cells]
     return inside
