@@ -15,7 +15,11 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     CorrelationArea,
     find_correlation_area,
 )
-from stereo_fuzzy_perception.core.best_point.object_segmentation import choose_object
+from stereo_fuzzy_perception.core.best_point.object_segmentation import (
+    choose_object,
+    plausible_average,
+)
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 
 # 0.8 m from the surface along the optical axis, 10 cm baseline (as test_correlation_area)
@@ -125,3 +129,48 @@ def test_a_negative_area_top_is_a_configuration_error():
     assert AreaConfig(area_top_sigmas=-1.0).problem() == (
         'area_top_sigmas=-1.0 must not be negative')
     assert dataclasses.replace(AreaConfig(), area_top_sigmas=0.0).problem() is None
+
+
+def test_plausible_average_leaves_out_what_no_object_reaches():
+    u = np.array([0.0, 1.0, 2.0, 10.0])
+    v = np.zeros(4)
+    values = np.array([1.0, 3.0, 100.0, 7.0])
+    plausible = np.array([True, True, False, False])
+    mean = plausible_average(u, v, values, plausible, 1.0, 5.0)
+    assert mean[:3] == pytest.approx([2.0, 2.0, 2.0]), 'expected the mismatch left out'
+    assert mean[3] == -np.inf, 'expected no average where no plausible match is near'
+
+
+def with_mismatches_above(points: MatchedPoints, disparity_shift: float, scale: float
+                          ) -> MatchedPoints:
+    """Return the points with a patch of the image moved toward the camera (mismatches)."""
+    patch = ((points.u_left > 250) & (points.u_left < 330) & (points.v_left > 150)
+             & (points.v_left < 230))
+    xyz = points.xyz.copy()
+    xyz[patch] *= scale
+    disparity = points.u_left - points.u_right - disparity_shift
+    u_right = np.where(patch, points.u_left - disparity_shift - disparity / scale,
+                       points.u_right)
+    return dataclasses.replace(points, xyz=xyz, u_right=u_right)
+
+
+@pytest.mark.parametrize('plausible', [False, True])
+def test_mismatches_high_above_a_bare_table_are_no_object(plausible):
+    points, left, right = grid_matches(FAR_RIG, None, 0.1, 1, seed=11)
+    shift = float(left.P[0, 2] - right.P[0, 2])
+    lifted = with_mismatches_above(points, shift, 0.75)
+    area = find_correlation_area(lifted, FAR_RIG.world_from_left_camera(),
+                                 AreaConfig(plausible_average=plausible), shift)
+    assert area.status == NO_OBJECT, area.reason
+
+
+def test_plausible_average_finds_a_box_beside_mismatches():
+    box = Box((0.12, 0.1), 0.05, 0.03)
+    points, left, right = grid_matches(FAR_RIG, box, 0.1, 1, seed=12)
+    shift = float(left.P[0, 2] - right.P[0, 2])
+    lifted = with_mismatches_above(points, shift, 0.75)
+    area = find_correlation_area(lifted, FAR_RIG.world_from_left_camera(),
+                                 AreaConfig(plausible_average=True), shift)
+    assert area.status == STATUS_OK, area.reason
+    assert area.top_height == pytest.approx(0.03, abs=0.002)
+    assert centre_error_m(area, box) < 0.003

@@ -112,6 +112,31 @@ def smoothed_on_grid(u: np.ndarray, v: np.ndarray, values: np.ndarray, step: flo
     return mean
 
 
+def plausible_average(u: np.ndarray, v: np.ndarray, values: np.ndarray, plausible: np.ndarray,
+                      step: float, size_px: float) -> np.ndarray:
+    """Return each point's mean of `values` over the plausible matches within a square of size_px.
+
+    Args:
+        u: (N,) left image column of every match [px], N > 0.
+        v: (N,) row [px].
+        values: (N,) what is averaged.
+        plausible: (N,) bool, the matches that take part in the averages.
+        step: Grid spacing [px] (grid_step).
+        size_px: Side of the averaging square [px] (at least one cell).
+
+    Returns:
+        (N,) the means; -inf where the square holds no plausible match.
+    """
+    weight = np.asarray(plausible, dtype=float)
+    # The ratio of two means over the same square: the sum over the plausible matches by
+    # their number.
+    total = smoothed_on_grid(u, v, np.where(plausible, values, 0.0), step, size_px)
+    share = smoothed_on_grid(u, v, weight, step, size_px)
+    mean: np.ndarray = np.full(len(weight), -np.inf)
+    np.divide(total, share, out=mean, where=share > 0.0)
+    return mean
+
+
 def grown_region(u: np.ndarray, v: np.ndarray, member: np.ndarray, step: float,
                  size_px: float) -> np.ndarray:
     """Return the points within a square of size_px around any member, in the image grid.
