@@ -102,8 +102,8 @@ class AreaConfig:
         plausible_average: Average for the object test only the matches no higher than
             max_object_height_m above the surface (mismatches on a plain table float at any
             height and drown a real object's average); the top face is still found on the
-            average of all. Off by default: on the validation split it let in a low disc's
-            partial face (a point over 10 mm) that the face's tests did not refuse.
+            average of all. Off by default: it lets in faces the face's tests do not yet
+            refuse (the package README, "Averages over plausible heights").
         top_band_sigmas: The correlation area is the object's points within this many sigmas
             of its top face.
         smoothing_px: Side of the image square over which heights are averaged before the
