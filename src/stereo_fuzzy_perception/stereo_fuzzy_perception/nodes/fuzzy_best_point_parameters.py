@@ -39,6 +39,15 @@ class FuzzyBestPointSettings:
     object_sigmas: float = parameter(
         _AREA.object_sigmas, 'A region of candidates is an object when its median height is '
         'this many sigmas (else: no object, no best point)', 0.5, 100.0)
+    area_top_sigmas: float = parameter(
+        _AREA.area_top_sigmas, 'A region whose median height is below object_sigmas is still '
+        'an object when, over the n squares of smoothing_px it covers (independent averages of '
+        'the noise), its median times sqrt(n) is object_sigmas and its top stands this many '
+        'sigmas of its points above the surface; 0 = no such area test', 0.0, 100.0)
+    plausible_average: bool = parameter(
+        _AREA.plausible_average, 'Average for the object test only the matches no higher than '
+        'max_object_height_m above the surface (mismatches on a plain table drown a real '
+        "object's average); the top face is still found on the average of all")
     top_band_sigmas: float = parameter(
         _AREA.top_band_sigmas, "The correlation area is the object's points within this many "
         'sigmas of its top face', 0.1, 20.0)
@@ -98,6 +107,7 @@ class FuzzyBestPointSettings:
             workspace_min=self.world.workspace_min_m, workspace_max=self.world.workspace_max_m,
             surface_search_m=self.surface_search_m,
             surface_margin_sigmas=self.surface_margin_sigmas, object_sigmas=self.object_sigmas,
+            area_top_sigmas=self.area_top_sigmas, plausible_average=self.plausible_average,
             top_band_sigmas=self.top_band_sigmas, smoothing_px=self.smoothing_px,
             min_disparity_sigma_px=self.min_disparity_sigma_px,
             assumed_disparity_sigma_px=self.assumed_disparity_sigma_px,

@@ -31,7 +31,9 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     hull_fill,
     image_regions,
     on_pixel_grid,
+    plausible_average,
     smoothed_on_grid,
+    square_cells,
 )
 from stereo_fuzzy_perception.core.best_point.work_surface import (
     INLIER_SIGMAS,
@@ -91,6 +93,17 @@ class AreaConfig:
         object_sigmas: A region is an object when its median height, averaged over
             smoothing_px, is this many sigmas of that average (and its top
             OBJECT_TOP_SIGMAS of one point's).
+        area_top_sigmas: The area test (object_segmentation.choose_object): a region whose
+            median falls short of object_sigmas is still an object when it covers n squares
+            of smoothing_px, its median times sqrt(n) (the n averages are independent samples
+            of the noise) is object_sigmas, and its top stands this many sigmas of its points
+            above the surface, more than the OBJECT_TOP_SIGMAS of a region high on its own;
+            0 turns the area test off.
+        plausible_average: Average for the object test only the matches no higher than
+            max_object_height_m above the surface (mismatches on a plain table float at any
+            height and drown a real object's average); the top face is still found on the
+            average of all. Off by default: it lets in faces the face's tests do not yet
+            refuse (the package README, "Averages over plausible heights").
         top_band_sigmas: The correlation area is the object's points within this many sigmas
             of its top face.
         smoothing_px: Side of the image square over which heights are averaged before the
@@ -125,6 +138,8 @@ class AreaConfig:
     surface_search_m: float = 0.02
     surface_margin_sigmas: float = 3.0
     object_sigmas: float = 5.0
+    area_top_sigmas: float = 3.0
+    plausible_average: bool = False
     top_band_sigmas: float = 2.0
     smoothing_px: float = 15.0
     min_disparity_sigma_px: float = 0.03
@@ -148,7 +163,7 @@ class AreaConfig:
                      'max_object_height_m'):
             if not getattr(self, name) > 0.0:
                 return f'{name}={getattr(self, name)} must be positive'
-        for name in ('max_top_spread_m', 'min_top_fill'):
+        for name in ('max_top_spread_m', 'min_top_fill', 'area_top_sigmas'):
             if not getattr(self, name) >= 0.0:
                 return f'{name}={getattr(self, name)} must not be negative'
         if self.object_sigmas < self.surface_margin_sigmas:
@@ -341,11 +356,16 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     residual_px = heights / per_px
     step = grid_step(u_left, v_left)
     smoothed = smoothed_on_grid(u_left, v_left, residual_px, step, config.smoothing_px)
-    on_surface = np.abs(residual_px) <= INLIER_SIGMAS * surface.disparity_sigma_px
-    smoothed_sigma = max(MAD_SCALE * float(np.median(np.abs(smoothed[on_surface])))
+    detected = (plausible_average(u_left, v_left, residual_px,
+                                  heights <= config.max_object_height_m, step,
+                                  config.smoothing_px)
+                if config.plausible_average else smoothed)
+    on_surface = (np.abs(residual_px) <= INLIER_SIGMAS * surface.disparity_sigma_px) & (
+        np.isfinite(detected))
+    smoothed_sigma = max(MAD_SCALE * float(np.median(np.abs(detected[on_surface])))
                          if np.any(on_surface) else surface.disparity_sigma_px,
                          config.min_disparity_sigma_px)
-    z_scores = smoothed / smoothed_sigma
+    z_scores = detected / smoothed_sigma
     (x_low, y_low, _), (x_high, y_high, _) = config.workspace_min, config.workspace_max
     in_box = (world[0] >= x_low) & (world[0] <= x_high) & (world[1] >= y_low) & (
         world[1] <= y_high)
@@ -353,14 +373,20 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                  & (world[2] >= config.workspace_min[2]))
     labels, regions = image_regions(u_left, v_left, candidate, step)
     fewest = max(config.min_points, math.ceil(MIN_OBJECT_AREA_PX / step ** 2))
+    # Matches in one averaging square of smoothing_px: its share of the area test's count.
+    square_points = float(square_cells(step, config.smoothing_px) ** 2)
     found = choose_object(labels, regions, z_scores, heights, sigma, config.object_sigmas,
-                          OBJECT_TOP_SIGMAS, fewest)
+                          OBJECT_TOP_SIGMAS, fewest, square_points, config.area_top_sigmas)
     if found.label == 0:
+        area_test = (f', or over its n squares of smoothing_px a median of object_sigmas / '
+                     f'sqrt(n) and a top area_top_sigmas={config.area_top_sigmas:g} sigmas high'
+                     if config.area_top_sigmas else '')
         detail = ('no point stands out of it' if regions == 0 else
-                  f'{regions} regions stand out of it, the largest ({found.points} points) by '
-                  f'a median {found.median_sigmas:.1f} sigmas; an object needs '
+                  f'{regions} regions stand out of it, the largest ({found.points} points, '
+                  f'{found.points / square_points:.1f} squares) by a median '
+                  f'{found.median_sigmas:.1f} sigmas; an object needs '
                   f'object_sigmas={config.object_sigmas:g}, a top {OBJECT_TOP_SIGMAS:g} sigmas '
-                  f'of its points high and {fewest} points')
+                  f'of its points high and {fewest} points' + area_test)
         return refused(NO_OBJECT, f'no object on the work surface ({surface.source}, '
                                   f'disparity noise {surface.disparity_sigma_px:.2f} px): '
                                   + detail, surface, regions, found.median_sigmas)

@@ -9,8 +9,13 @@ same thresholds hold near and far:
    correlation window, an object as one region that covers its whole image.
 3. An object is a region whose median z is at least `object_sigmas`: the tail of the surface
    noise that crossed the margin stays just above it, an object's top stands above it as a
-   whole (a disc of 5 mm at 0.8 m in the rendered scenes: ~10 sigma). Of several objects the
-   one with the most points is kept; none means no object, whatever the noise did.
+   whole (a disc of 5 mm at 0.8 m in the rendered scenes: ~10 sigma). A region that covers
+   several averaging squares holds as many independent averages of the noise, so its median
+   is significant sooner: it is an object when its median times the square root of that
+   number reaches `object_sigmas` and its top stands `area_top_sigmas` of one point's noise
+   above the surface (the area test: a low disc on a far rig, a box whose region is half the
+   table around it). Of several objects the one with the most points is kept; none means no
+   object, whatever the noise did.
 4. The top face: the highest dense level of the region's heights (bins of one sigma, a bin is
    dense when it holds TOP_DENSE_SHARE of the fullest), refined to the median of the heights
    within TOP_WINDOW_SIGMAS of it. The correlation area is the region's points within
@@ -78,6 +83,14 @@ def _grid_cells(u: np.ndarray, v: np.ndarray, step: float) -> tuple[np.ndarray, 
     return row * shape[1] + column, shape
 
 
+def square_cells(step: float, size_px: float) -> int:
+    """Return the side [cells] of the averaging square of size_px on a grid of spacing step.
+
+    Odd and at least one cell, so that the square is centred on its point.
+    """
+    return max(1, int(round(size_px / step)) | 1)
+
+
 def smoothed_on_grid(u: np.ndarray, v: np.ndarray, values: np.ndarray, step: float,
                      size_px: float) -> np.ndarray:
     """Return each point's mean of `values` over the matches within a square of size_px.
@@ -90,12 +103,37 @@ def smoothed_on_grid(u: np.ndarray, v: np.ndarray, values: np.ndarray, step: flo
         size_px: Side of the averaging square [px] (at least one cell).
     """
     cells, shape = _grid_cells(u, v, step)
-    size = max(1, int(round(size_px / step)) | 1)
+    size = square_cells(step, size_px)
     total = ndimage.uniform_filter(np.bincount(cells, weights=values, minlength=shape[0]
                                                * shape[1]).reshape(shape), size, mode='constant')
     count = ndimage.uniform_filter(np.bincount(cells, minlength=shape[0] * shape[1]).astype(
         float).reshape(shape), size, mode='constant')
     mean: np.ndarray = total.reshape(-1)[cells] / count.reshape(-1)[cells]
+    return mean
+
+
+def plausible_average(u: np.ndarray, v: np.ndarray, values: np.ndarray, plausible: np.ndarray,
+                      step: float, size_px: float) -> np.ndarray:
+    """Return each point's mean of `values` over the plausible matches within a square of size_px.
+
+    Args:
+        u: (N,) left image column of every match [px], N > 0.
+        v: (N,) row [px].
+        values: (N,) what is averaged.
+        plausible: (N,) bool, the matches that take part in the averages.
+        step: Grid spacing [px] (grid_step).
+        size_px: Side of the averaging square [px] (at least one cell).
+
+    Returns:
+        (N,) the means; -inf where the square holds no plausible match.
+    """
+    weight = np.asarray(plausible, dtype=float)
+    # The ratio of two means over the same square: the sum over the plausible matches by
+    # their number.
+    total = smoothed_on_grid(u, v, np.where(plausible, values, 0.0), step, size_px)
+    share = smoothed_on_grid(u, v, weight, step, size_px)
+    mean: np.ndarray = np.full(len(weight), -np.inf)
+    np.divide(total, share, out=mean, where=share > 0.0)
     return mean
 
 
@@ -113,7 +151,7 @@ def grown_region(u: np.ndarray, v: np.ndarray, member: np.ndarray, step: float,
     cells, shape = _grid_cells(u, v, step)
     grid = np.zeros(shape[0] * shape[1], dtype=bool)
     grid[cells[member]] = True
-    size = max(1, int(round(size_px / step)) | 1)
+    size = square_cells(step, size_px)
     grown = ndimage.maximum_filter(grid.reshape(shape), size, mode='constant')
     inside: np.ndarray = grown.reshape(-1)[cells]
     return inside
@@ -218,7 +256,8 @@ def across_m(xy: np.ndarray) -> float:
 
 def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights: np.ndarray,
                   sigmas: np.ndarray, object_sigmas: float, top_sigmas: float,
-                  min_points: int) -> ObjectRegion:
+                  min_points: int, square_points: float = 0.0,
+                  area_top_sigmas: float = 0.0) -> ObjectRegion:
     """Return the region that is an object, or label 0 when none is.
 
     A region is an object when it has min_points points, their median z (heights averaged
@@ -226,7 +265,12 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
     (top_height) stands top_sigmas above the surface in sigmas of one point. The second test
     keeps out low, wide patterns that averaging makes significant: the surface's own
     systematic errors (sub-pixel bias, a plane that fits a slightly curved surface), a
-    millimetre high. Of several objects the one with the most points.
+    millimetre high. The area test (square_points and area_top_sigmas positive): a region of
+    n = points / square_points averaging squares (at least 1) whose median z is below
+    object_sigmas is an object when median z * sqrt(n) is object_sigmas and its top stands
+    area_top_sigmas above the surface: the averages over n squares are n independent
+    samples of the noise, their median scatters sqrt(n) times less. Of several objects the
+    one with the most points.
 
     Args:
         labels: (N,) region of every point (0: none).
@@ -237,6 +281,9 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
         object_sigmas: Lowest median z of an object.
         top_sigmas: Lowest top height of an object, in sigmas of its points.
         min_points: Fewest points of an object.
+        square_points: Points of the grid in one averaging square (0: no area test).
+        area_top_sigmas: Lowest top height of an object found by the area test, in sigmas
+            of its points (0: no area test).
     """
     if count == 0:
         return ObjectRegion(0, 0, 0, math.nan, 0)
@@ -249,13 +296,19 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
     for label in range(1, count + 1):
         if sizes[label]:
             medians[label] = float(np.median(sorted_scores[bounds[label - 1]:bounds[label]]))
-    passed = np.flatnonzero((sizes >= min_points) & (medians >= object_sigmas))
+    high = medians >= object_sigmas
+    passed = high.copy()
+    if square_points > 0.0 and area_top_sigmas > 0.0:
+        squares = np.maximum(1.0, sizes / square_points)
+        passed |= medians * np.sqrt(squares) >= object_sigmas
+    passed &= sizes >= min_points
     objects = []
-    for passing in passed:
+    for passing in np.flatnonzero(passed):
         label = int(passing)
         region = labels == label
         top = top_height(heights[region], sigmas[region])
-        if top >= top_sigmas * float(np.median(sigmas[region])):
+        least = top_sigmas if high[label] else max(top_sigmas, area_top_sigmas)
+        if top >= least * float(np.median(sigmas[region])):
             objects.append((int(sizes[label]), label, top))
     if not objects:
         largest = int(np.argmax(sizes))

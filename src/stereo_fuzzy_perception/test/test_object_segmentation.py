@@ -1,0 +1,176 @@
+"""The object among the regions above the surface (object_segmentation.py): the area test."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from grid_scenes import Box, grid_matches
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from stereo_fuzzy_perception.core.best_point.correlation_area import (
+    NO_OBJECT,
+    STATUS_OK,
+    AreaConfig,
+    CorrelationArea,
+    find_correlation_area,
+)
+from stereo_fuzzy_perception.core.best_point.object_segmentation import (
+    choose_object,
+    plausible_average,
+)
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+
+# 0.8 m from the surface along the optical axis, 10 cm baseline (as test_correlation_area)
+FAR_RIG = StereoRig(baseline_m=0.10, alpha_deg=30.0, x0_m=0.2, y0_m=-0.25,
+                    z0_m=0.8 * math.cos(math.radians(30.0)), vergence_deg=6.0)
+NEAR_RIG = StereoRig(baseline_m=0.05, alpha_deg=20.0, theta_deg=10.0, x0_m=0.22, y0_m=-0.05,
+                     z0_m=0.3, vergence_deg=2.0)
+RIGS = {'default': StereoRig(), 'far': FAR_RIG, 'near': NEAR_RIG}
+DEFAULTS = AreaConfig()
+NO_AREA_TEST = AreaConfig(area_top_sigmas=0.0)
+
+
+def area_in(rig: StereoRig, box: Box | None, noise_px: float, stride: int = 1,
+            config: AreaConfig = DEFAULTS, seed: int = 0) -> CorrelationArea:
+    points, left, right = grid_matches(rig, box, noise_px, stride, seed=seed)
+    return find_correlation_area(points, rig.world_from_left_camera(), config,
+                                 float(left.P[0, 2] - right.P[0, 2]))
+
+
+def centre_error_m(area: CorrelationArea, box: Box) -> float:
+    centre = np.average(area.xyz_world[:, :2], axis=0, weights=area.point_weights())
+    return float(np.hypot(*(centre - box.centre_xy)))
+
+
+# One region of 10 averaging squares (100 points of 10 each) with a median below object_sigmas,
+# one of a single square with the same median.
+SQUARE_POINTS = 10.0
+LABELS = np.array([1] * 100 + [2] * 10 + [0] * 10)
+Z_SCORES = np.concatenate([np.full(110, 3.4), np.zeros(10)])
+SIGMAS = np.full(120, 0.001)
+
+
+def heights_with_top(top_m: float) -> np.ndarray:
+    return np.concatenate([np.full(110, top_m), np.zeros(10)])
+
+
+def test_a_large_region_is_an_object_by_its_area_when_its_top_stands_out():
+    found = choose_object(LABELS, 2, Z_SCORES, heights_with_top(0.0035), SIGMAS, 5.0, 2.0, 5,
+                          SQUARE_POINTS, 3.0)
+    assert (found.label, found.objects, found.points) == (1, 1, 100), (
+        'expected the region of 10 squares (median 3.4 * sqrt(10) > 5) only')
+    assert found.top_m == pytest.approx(0.0035)
+
+
+def test_the_area_test_needs_its_own_higher_top():
+    # 2.5 sigmas: enough for a region high on its own (2), not for one found by its area (3)
+    low = choose_object(LABELS, 2, Z_SCORES, heights_with_top(0.0025), SIGMAS, 5.0, 2.0, 5,
+                        SQUARE_POINTS, 3.0)
+    assert low.label == 0 and low.objects == 0
+    high_on_its_own = choose_object(LABELS, 2, np.full(120, 5.5), heights_with_top(0.0025),
+                                    SIGMAS, 5.0, 2.0, 5, SQUARE_POINTS, 3.0)
+    assert high_on_its_own.label == 1, 'expected the 2 sigma top of the plain test'
+
+
+def test_without_the_area_test_only_the_median_counts():
+    for square_points, area_top_sigmas in ((0.0, 3.0), (SQUARE_POINTS, 0.0)):
+        found = choose_object(LABELS, 2, Z_SCORES, heights_with_top(0.0035), SIGMAS, 5.0, 2.0,
+                              5, square_points, area_top_sigmas)
+        assert found.label == 0, f'area test off ({square_points}, {area_top_sigmas})'
+
+
+@settings(max_examples=30, deadline=None)
+@given(rig=st.sampled_from(sorted(RIGS)), stride=st.sampled_from([1, 3]),
+       noise_px=st.floats(0.03, 0.8), seed=st.integers(0, 2 ** 31 - 1))
+def test_a_noisy_table_alone_never_gives_an_object(rig, stride, noise_px, seed):
+    area = area_in(RIGS[rig], None, noise_px, stride, seed=seed)
+    assert area.status == NO_OBJECT, (
+        f'expected no object on a bare table ({rig} rig, stride {stride}, noise {noise_px:.2f} '
+        f'px, seed {seed}), got {area.status}: {area.reason}')
+
+
+@settings(max_examples=20, deadline=None)
+@given(diameter_m=st.floats(0.03, 0.08), noise_px=st.floats(0.05, 0.12),
+       stride=st.sampled_from([1, 3]), seed=st.integers(0, 2 ** 31 - 1))
+def test_a_disc_5_mm_high_at_0_8_m_is_always_found(diameter_m, noise_px, stride, seed):
+    disc = Box((0.2, 0.15), diameter_m, 0.005, round=True)
+    area = area_in(FAR_RIG, disc, noise_px, stride, seed=seed)
+    assert area.status == STATUS_OK, (
+        f'expected the disc ({1000 * diameter_m:.0f} mm, noise {noise_px:.2f} px, stride '
+        f'{stride}, seed {seed}) found: {area.reason}')
+    assert area.top_height == pytest.approx(0.005, abs=0.0015)
+    assert centre_error_m(area, disc) < 0.005
+
+
+@pytest.mark.parametrize('seed', [0, 3])
+def test_a_low_disc_in_noise_is_found_by_its_area(seed):
+    # 5 mm high, 30 mm across, 0.8 m away, 0.2 px of disparity noise: its region's median is
+    # below object_sigmas (about 4.5 sigmas), the region covers several averaging squares
+    disc = Box((0.2, 0.15), 0.03, 0.005, round=True)
+    without = area_in(FAR_RIG, disc, 0.2, seed=seed, config=NO_AREA_TEST)
+    assert without.status == NO_OBJECT, 'expected a disc the plain median test misses'
+    area = area_in(FAR_RIG, disc, 0.2, seed=seed)
+    assert area.status == STATUS_OK, area.reason
+    assert area.object_height_sigmas < DEFAULTS.object_sigmas
+    assert centre_error_m(area, disc) < 0.003
+
+
+def test_a_refused_region_names_the_area_test():
+    area = area_in(FAR_RIG, None, 0.3, seed=5)
+    assert area.status == NO_OBJECT
+    assert 'area_top_sigmas=3' in area.reason and 'squares' in area.reason, area.reason
+    off = area_in(FAR_RIG, None, 0.3, seed=5, config=NO_AREA_TEST)
+    assert 'area_top_sigmas' not in off.reason
+
+
+def test_a_negative_area_top_is_a_configuration_error():
+    assert AreaConfig(area_top_sigmas=-1.0).problem() == (
+        'area_top_sigmas=-1.0 must not be negative')
+    assert dataclasses.replace(AreaConfig(), area_top_sigmas=0.0).problem() is None
+
+
+def test_plausible_average_leaves_out_what_no_object_reaches():
+    u = np.array([0.0, 1.0, 2.0, 10.0])
+    v = np.zeros(4)
+    values = np.array([1.0, 3.0, 100.0, 7.0])
+    plausible = np.array([True, True, False, False])
+    mean = plausible_average(u, v, values, plausible, 1.0, 5.0)
+    assert mean[:3] == pytest.approx([2.0, 2.0, 2.0]), 'expected the mismatch left out'
+    assert mean[3] == -np.inf, 'expected no average where no plausible match is near'
+
+
+def with_mismatches_above(points: MatchedPoints, disparity_shift: float, scale: float
+                          ) -> MatchedPoints:
+    """Return the points with a patch of the image moved toward the camera (mismatches)."""
+    patch = ((points.u_left > 250) & (points.u_left < 330) & (points.v_left > 150)
+             & (points.v_left < 230))
+    xyz = points.xyz.copy()
+    xyz[patch] *= scale
+    disparity = points.u_left - points.u_right - disparity_shift
+    u_right = np.where(patch, points.u_left - disparity_shift - disparity / scale,
+                       points.u_right)
+    return dataclasses.replace(points, xyz=xyz, u_right=u_right)
+
+
+@pytest.mark.parametrize('plausible', [False, True])
+def test_mismatches_high_above_a_bare_table_are_no_object(plausible):
+    points, left, right = grid_matches(FAR_RIG, None, 0.1, 1, seed=11)
+    shift = float(left.P[0, 2] - right.P[0, 2])
+    lifted = with_mismatches_above(points, shift, 0.75)
+    area = find_correlation_area(lifted, FAR_RIG.world_from_left_camera(),
+                                 AreaConfig(plausible_average=plausible), shift)
+    assert area.status == NO_OBJECT, area.reason
+
+
+def test_plausible_average_finds_a_box_beside_mismatches():
+    box = Box((0.12, 0.1), 0.05, 0.03)
+    points, left, right = grid_matches(FAR_RIG, box, 0.1, 1, seed=12)
+    shift = float(left.P[0, 2] - right.P[0, 2])
+    lifted = with_mismatches_above(points, shift, 0.75)
+    area = find_correlation_area(lifted, FAR_RIG.world_from_left_camera(),
+                                 AreaConfig(plausible_average=True), shift)
+    assert area.status == STATUS_OK, area.reason
+    assert area.top_height == pytest.approx(0.03, abs=0.002)
+    assert centre_error_m(area, box) < 0.003
