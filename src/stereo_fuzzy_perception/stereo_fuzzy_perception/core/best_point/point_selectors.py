@@ -33,7 +33,10 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     CorrelationArea,
     find_correlation_area,
 )
-from stereo_fuzzy_perception.core.best_point.face_outline import face_from_image
+from stereo_fuzzy_perception.core.best_point.face_outline import (
+    face_from_image,
+    plain_face_from_image,
+)
 from stereo_fuzzy_perception.core.best_point.four_areas import FourAreas, split_into_areas
 from stereo_fuzzy_perception.core.best_point.fuzzy_inference import infer
 from stereo_fuzzy_perception.core.best_point.neural_baseline import (
@@ -236,10 +239,17 @@ class BestPointChooser:
             decision.rule_names = [rule.name for rule in self.rule_base.rules]
         area = find_correlation_area(points, self.world_from_camera, self.area_config,
                                      disparity_shift(left, right))
-        if area.ok and points.left_image is not None and self.area_config.outline_from_image:
-            outlined = face_from_image(area, points.left_image, left, right,
-                                       self.world_from_camera, self.area_config.min_points)
-            area = outlined or area
+        if points.left_image is not None and self.area_config.outline_from_image:
+            if area.ok:
+                outlined = face_from_image(area, points.left_image, left, right,
+                                           self.world_from_camera, self.area_config.min_points)
+                area = outlined or area
+            elif area.face_in_pieces is not None:
+                whole = plain_face_from_image(
+                    area.face_in_pieces, points.left_image, left, right,
+                    self.world_from_camera, self.area_config.min_points,
+                    self.area_config.max_object_across_m)
+                area = whole or area
         decision.surface = area.surface
         decision.object_height_sigmas = area.object_height_sigmas
         decision.points_in, decision.points_valid = area.points_in, area.points_valid
