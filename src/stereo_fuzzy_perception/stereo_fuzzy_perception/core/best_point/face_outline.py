@@ -84,6 +84,12 @@ PLAIN_CONVEXITY = 0.85
 """A plain face covers at least this share of its convex hull (the objects' tops are
 convex)."""
 
+FLAT_SIDE_PX = 5
+"""Side of the square over which a match's local grey-level deviation is measured [px]."""
+
+FLAT_SHARE = 0.25
+"""The flattest share of the matches gives a plain face's grey and noise."""
+
 PLAIN_MARGIN_PX = 10
 """Added to the box in which a plain face is looked for [px]."""
 
@@ -166,30 +172,16 @@ def plain_face_from_image(face: CorrelationArea, image: RectifiedImage,
         return None  # matches outside the image sent: nothing to compare them with
     crop = cv2.GaussianBlur(pixels[low[1]:high[1], low[0]:high[0]].astype(np.float32),
                             (0, 0), SMOOTHING_SIGMA_PX)
-    seeds = crop[rows - low[1], columns - low[0]]
-    level = float(np.median(seeds))
-    spread = MAD_TO_SIGMA * float(np.median(np.abs(seeds - level)))
     grey_level = 257.0 if pixels.dtype == np.uint16 else 1.0
-    tolerance = max(PLAIN_TOLERANCE_SIGMAS * spread, PLAIN_TOLERANCE_GREY * grey_level)
-    plain = (np.abs(crop - level) <= tolerance).astype(np.uint8)
-    # Opening cuts the thin bridges through which the region would leak into table texture
-    # of the same grey.
-    plain = cv2.morphologyEx(plain, cv2.MORPH_OPEN, cv2.getStructuringElement(
-        cv2.MORPH_ELLIPSE, (2 * PLAIN_OPENING_PX + 1, 2 * PLAIN_OPENING_PX + 1)))
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(plain, connectivity=4)
-    held = np.bincount(labels[rows - low[1], columns - low[0]], minlength=count)
-    held[0] = 0
-    region = int(np.argmax(held))
-    if region == 0 or held[region] < PLAIN_SEED_SHARE * len(columns):
+    hull = None
+    for level, spread in _plain_levels(crop, rows - low[1], columns - low[0]):
+        tolerance = max(PLAIN_TOLERANCE_SIGMAS * spread, PLAIN_TOLERANCE_GREY * grey_level)
+        hull = _plain_region(np.abs(crop - level) <= tolerance, rows - low[1],
+                             columns - low[0])
+        if hull is not None:
+            break
+    if hull is None:
         return None
-    x, y, width, height, size = stats[region]
-    if x == 0 or y == 0 or x + width >= crop.shape[1] or y + height >= crop.shape[0]:
-        return None  # open to the box's edge: table or background, not a face
-    contours, _ = cv2.findContours((labels == region).astype(np.uint8), cv2.RETR_EXTERNAL,
-                                   cv2.CHAIN_APPROX_NONE)
-    hull = cv2.convexHull(max(contours, key=cv2.contourArea)).reshape(-1, 2)
-    if size < PLAIN_CONVEXITY * cv2.contourArea(hull):
-        return None  # not one convex face: a face with a wall or the table's texture
     step = grid_step(face.u_left, face.v_left)
     on_grid = _filled_on_grid(hull.astype(float) + low + (image.x, image.y), step,
                               face.u_left[0], face.v_left[0])
@@ -199,6 +191,55 @@ def plain_face_from_image(face: CorrelationArea, image: RectifiedImage,
     if whole is None or across_m(whole.xyz_world[:, :2]) > max_across_m:
         return None
     return whole
+
+
+def _plain_levels(crop: np.ndarray, rows: np.ndarray, columns: np.ndarray
+                  ) -> list[tuple[float, float]]:
+    """Return the grey levels (level, sigma) a plain face is looked for at, narrower first.
+
+    The matches sit at the rim, where windows take in the rim's edge: first the grey of the
+    flattest of them (their quarter with the least local deviation, which lie on the face
+    itself) with the image's noise there, then the median and spread of all of them (a top
+    with faint texture of its own).
+    """
+    mean = cv2.blur(crop, (FLAT_SIDE_PX, FLAT_SIDE_PX))
+    square = cv2.blur(crop * crop, (FLAT_SIDE_PX, FLAT_SIDE_PX))
+    local = np.sqrt(np.maximum(square - mean * mean, 0.0))[rows, columns]
+    seeds = crop[rows, columns]
+    flat = local <= np.quantile(local, FLAT_SHARE)
+    everything = float(np.median(seeds))
+    return [(float(np.median(seeds[flat])), float(np.median(local[flat]))),
+            (everything, MAD_TO_SIGMA * float(np.median(np.abs(seeds - everything))))]
+
+
+def _plain_region(plain: np.ndarray, rows: np.ndarray, columns: np.ndarray
+                  ) -> np.ndarray | None:
+    """Return the hull (K, 2) of the plain pixels' region around the matches, or None.
+
+    Args:
+        plain: Which pixels of the crop are of the face's grey.
+        rows: The matches' rows in the crop.
+        columns: Their columns.
+    """
+    # Opening cuts the thin bridges through which the region would leak into table texture
+    # of the same grey.
+    opened = cv2.morphologyEx(plain.astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(
+        cv2.MORPH_ELLIPSE, (2 * PLAIN_OPENING_PX + 1, 2 * PLAIN_OPENING_PX + 1)))
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=4)
+    held = np.bincount(labels[rows, columns], minlength=count)
+    held[0] = 0
+    region = int(np.argmax(held))
+    if region == 0 or held[region] < PLAIN_SEED_SHARE * len(columns):
+        return None
+    x, y, width, height, size = stats[region]
+    if x == 0 or y == 0 or x + width >= plain.shape[1] or y + height >= plain.shape[0]:
+        return None  # open to the box's edge: table or background, not a face
+    contours, _ = cv2.findContours((labels == region).astype(np.uint8), cv2.RETR_EXTERNAL,
+                                   cv2.CHAIN_APPROX_NONE)
+    hull: np.ndarray = cv2.convexHull(max(contours, key=cv2.contourArea)).reshape(-1, 2)
+    if size < PLAIN_CONVEXITY * cv2.contourArea(hull):
+        return None  # not one convex face: a face with a wall or the table's texture
+    return hull
 
 
 def _hull_outline(u: np.ndarray, v: np.ndarray, step: float) -> np.ndarray | None:
