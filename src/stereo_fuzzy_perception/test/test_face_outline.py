@@ -196,3 +196,16 @@ def test_plain_face_needs_the_matches_inside_the_image_sent():
     cut = RectifiedImage(whole.pixels[:, :last], window_size=whole.window_size)
     assert plain_face_from_image(face, cut, left, right, pose, DEFAULTS.min_points,
                                  DEFAULTS.max_object_across_m) is None
+
+
+def test_max_score_decides_on_the_matches_even_when_the_image_comes_with_them():
+    points, left, right = grid_matches(RIG, BOX, 0.05, 1, fatten_px=4, image=True)
+    pose = RIG.world_from_left_camera()
+    world = points.xyz.astype(float) @ pose[:3, :3].T + pose[:3, 3]
+    on_top = np.flatnonzero(world[:, 2] > 0.5 * BOX.height)
+    points.score = points.score.copy()
+    points.score[on_top[len(on_top) // 3]] = 2.0
+    chooser = dataclasses.replace(BestPointChooser.create('max_score', DEFAULTS, RIG),
+                                  world_from_camera=pose)
+    decision = chooser.decide(points, left, right)
+    np.testing.assert_allclose(decision.best_point_world[:2], world[on_top[len(on_top) // 3], :2])

@@ -12,14 +12,15 @@ differ in x, y:
 
 - fuzzy_fitted / fuzzy_chapter: Eq. 10 over the rule base's twelve rules (fuzzy_inference.py).
 - centroid: the mean of the correlation area's points.
-- max_score: the correlation-area point with the highest correlation score.
+- max_score: the correlation-area match with the highest correlation score (the matches' own
+  area: an outline from the image has no scores of its own).
 - neural_network: the MLP baseline's offset from the centroid (neural_baseline.py).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -237,7 +238,11 @@ class BestPointChooser:
                                      self.rule_base.name if self.rule_base else '')
         if self.rule_base is not None:
             decision.rule_names = [rule.name for rule in self.rule_base.rules]
-        area = decision_area(points, left, right, self.world_from_camera, self.area_config)
+        config = self.area_config
+        if self.selector == 'max_score':
+            # Scores belong to matches: an area outlined from the image has one score for all.
+            config = replace(config, outline_from_image=False)
+        area = decision_area(points, left, right, self.world_from_camera, config)
         decision.surface = area.surface
         decision.object_height_sigmas = area.object_height_sigmas
         decision.points_in, decision.points_valid = area.points_in, area.points_valid
