@@ -41,7 +41,7 @@ class Box:
 def grid_matches(rig: StereoRig, box: Box | None, noise_px: float, stride: int = 1,
                  seed: int = 0, fov_deg: float = 45.0, surface_z: float = 0.0,
                  surface_slope: tuple[float, float] = (0.0, 0.0), window: int = 9,
-                 fatten_px: int = 0, image: bool = False
+                 fatten_px: int = 0, image: bool = False, plain_rim_px: int = 0
                  ) -> tuple[MatchedPoints, CameraCalibration, CameraCalibration]:
     """Return (matches, left, right rectified calibrations) of a box on a (tilted) surface.
 
@@ -49,7 +49,9 @@ def grid_matches(rig: StereoRig, box: Box | None, noise_px: float, stride: int =
     its top at surface_z + height. Side walls are not drawn. `fatten_px` gives the top's
     disparity to that many pixels right of its rim (as a window straddling a rim whose table
     side is plain would); `image` attaches the left rectified image: a textured table and a
-    brighter textured top.
+    brighter textured top. `plain_rim_px` makes the top plain (a grey level of sensor noise in
+    the image) and, as window correlation would, leaves it matches only within that many
+    pixels of its rim.
     """
     left, right = rectified_calibration(rig, default_camera_matrix(vertical_fov_deg=fov_deg))
     focal, cx, cy = left.P[0, 0], left.P[0, 2], left.P[1, 2]
@@ -75,9 +77,12 @@ def grid_matches(rig: StereoRig, box: Box | None, noise_px: float, stride: int =
             depth = np.where(fattened, top_depth, depth)
     rng = np.random.default_rng(seed)
     picture = None
+    plain = box is not None and plain_rim_px > 0
     if image:
         texture = ndimage.uniform_filter(rng.normal(size=depth.shape), 3)
         texture *= 25.0 / float(texture.std())
+        if plain:
+            texture = np.where(on_top, rng.normal(size=depth.shape), texture)
         brighter = 60.0 + (110.0 * on_top if box is not None else 0.0)
         picture = RectifiedImage(np.clip(brighter + texture, 0, 255).astype(np.uint8),
                                  window_size=window)
@@ -86,6 +91,8 @@ def grid_matches(rig: StereoRig, box: Box | None, noise_px: float, stride: int =
     disparity = f_baseline / depth + noise
     keep = (depth > 0) & (disparity > 0)
     keep[::, :] &= (rows % stride == 0) & (columns % stride == 0)
+    if plain:
+        keep &= ~on_top | (ndimage.distance_transform_edt(on_top) <= plain_rim_px)
     rectified = rectified_rays[keep] * (f_baseline / disparity[keep])[:, None]
     xyz = rectified @ np.asarray(left.R)  # R^T applied to row vectors
     u = columns[keep]

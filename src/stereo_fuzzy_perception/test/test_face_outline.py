@@ -9,10 +9,16 @@ from grid_scenes import Box, camera_distance, grid_matches
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     OUTLINE_IMAGE,
     OUTLINE_MATCHES,
+    UNCERTAIN_TOP,
     AreaConfig,
     find_correlation_area,
 )
-from stereo_fuzzy_perception.core.best_point.face_outline import _on_top_plane, face_from_image
+from stereo_fuzzy_perception.core.best_point.face_outline import (
+    _on_top_plane,
+    face_from_image,
+    plain_face_from_image,
+)
+from stereo_fuzzy_perception.core.best_point.object_segmentation import across_m
 from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser
 from stereo_fuzzy_perception.core.matched_points import RectifiedImage
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
@@ -121,3 +127,85 @@ def test_the_outlined_area_is_the_faces_pixels_on_the_top_plane():
         pixel = np.c_[rectified, np.ones(len(rectified))] @ np.asarray(calibration.P).T
         np.testing.assert_allclose(pixel[:, 0] / pixel[:, 2], columns, atol=1e-6)
         np.testing.assert_allclose(pixel[:, 1] / pixel[:, 2], outlined.v_left, atol=1e-6)
+
+
+# A plain top: matched only within a correlation window's radius (and a pixel) of its rim.
+PLAIN_RIM_PX = 5
+
+
+def plain_top(box, stride, **changes):
+    return grid_matches(RIG, box, 0.05, stride, image=True, plain_rim_px=PLAIN_RIM_PX,
+                        **changes)
+
+
+def decide(points, left, right, config=DEFAULTS):
+    chooser = dataclasses.replace(BestPointChooser.create('centroid', config, RIG),
+                                  world_from_camera=RIG.world_from_left_camera())
+    return chooser.decide(points, left, right)
+
+
+@pytest.mark.parametrize('box', [BOX, DISC], ids=['box', 'disc'])
+@pytest.mark.parametrize('stride', [1, 3])
+def test_a_plain_top_matched_only_at_its_rim_is_taken_whole_from_the_image(box, stride):
+    points, left, right = plain_top(box, stride)
+    pose = RIG.world_from_left_camera()
+    area = find_correlation_area(points, pose, DEFAULTS, float(left.P[0, 2] - right.P[0, 2]))
+    assert area.status == UNCERTAIN_TOP and area.face_in_pieces is not None, area.reason
+    assert decide(points, left, right, IMAGE_OFF).status == UNCERTAIN_TOP
+    outlined, decision = error_mm(points, left, right, box)
+    assert decision.status == 'ok'
+    left_calibration = grid_matches(RIG, None, 0.0, 8)[1]
+    pixel_mm = 1000.0 * camera_distance(RIG) / float(left_calibration.P[0, 0])
+    assert outlined - pixel_floor_mm(box, stride) < pixel_mm
+
+
+def test_a_face_in_pieces_whose_image_region_leaks_into_the_table_stays_refused():
+    points, left, right = plain_top(BOX, 1)
+    # the top painted with the table's texture and grey: no closed plain region around it
+    table_only = grid_matches(RIG, None, 0.0, 1, image=True)[0].left_image
+    points = dataclasses.replace(points, left_image=table_only)
+    decision = decide(points, left, right)
+    assert decision.status == UNCERTAIN_TOP, decision.status
+    assert decision.best_point_world is None
+
+
+def test_a_plain_region_longer_than_any_object_stays_refused():
+    points, left, right = plain_top(BOX, 1)
+    pose = RIG.world_from_left_camera()
+    area = find_correlation_area(points, pose, DEFAULTS, float(left.P[0, 2] - right.P[0, 2]))
+    face = area.face_in_pieces
+    assert face is not None
+    whole = plain_face_from_image(face, points.left_image, left, right, pose,
+                                  DEFAULTS.min_points, DEFAULTS.max_object_across_m)
+    assert whole is not None
+    length = across_m(whole.xyz_world[:, :2])
+    assert plain_face_from_image(face, points.left_image, left, right, pose,
+                                 DEFAULTS.min_points, 0.95 * length) is None
+
+
+def test_plain_face_needs_the_matches_inside_the_image_sent():
+    points, left, right = plain_top(BOX, 1)
+    pose = RIG.world_from_left_camera()
+    area = find_correlation_area(points, pose, DEFAULTS, float(left.P[0, 2] - right.P[0, 2]))
+    face = area.face_in_pieces
+    assert face is not None
+    whole = points.left_image
+    assert plain_face_from_image(face, whole, left, right, pose, DEFAULTS.min_points,
+                                 DEFAULTS.max_object_across_m) is not None
+    last = int(face.u_left.max()) - 5
+    cut = RectifiedImage(whole.pixels[:, :last], window_size=whole.window_size)
+    assert plain_face_from_image(face, cut, left, right, pose, DEFAULTS.min_points,
+                                 DEFAULTS.max_object_across_m) is None
+
+
+def test_max_score_decides_on_the_matches_even_when_the_image_comes_with_them():
+    points, left, right = grid_matches(RIG, BOX, 0.05, 1, fatten_px=4, image=True)
+    pose = RIG.world_from_left_camera()
+    world = points.xyz.astype(float) @ pose[:3, :3].T + pose[:3, 3]
+    on_top = np.flatnonzero(world[:, 2] > 0.5 * BOX.height)
+    points.score = points.score.copy()
+    points.score[on_top[len(on_top) // 3]] = 2.0
+    chooser = dataclasses.replace(BestPointChooser.create('max_score', DEFAULTS, RIG),
+                                  world_from_camera=pose)
+    decision = chooser.decide(points, left, right)
+    np.testing.assert_allclose(decision.best_point_world[:2], world[on_top[len(on_top) // 3], :2])

@@ -5,6 +5,7 @@ import pytest
 from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig
 from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser
 from stereo_fuzzy_perception.core.rig_geometry import transform_points
+from stereo_fuzzy_perception.simulation.distribution_source import perfect_points
 from stereo_fuzzy_perception.simulation.rendered_scenes import RenderedSceneSource
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SCENE_SOURCES, SyntheticScene
 
@@ -44,3 +45,19 @@ def test_the_centroid_selector_finds_the_rendered_top(scene):
     assert decision.has_best_point, decision.status_text()
     error_mm = 1000.0 * np.linalg.norm(decision.best_point_world - scene.target_world)
     assert error_mm < 10.0, f'centroid {error_mm:.1f} mm from the top-face centre'
+
+
+def test_a_frame_with_maps_gives_the_same_scene_and_its_perfect_points():
+    # What table1_benchmark.py's ceiling rows decide on: the same pixels from the depth buffer.
+    with RenderedSceneSource() as source:
+        plain = source.scene_of_seed(7, 'cylinder')
+        frame = source.render(7, 'cylinder', with_maps=True)
+        result = source.match(frame)
+        scene = source.scene_of_frame(frame, result)
+    np.testing.assert_array_equal(scene.points.xyz, plain.points.xyz)
+    perfect = perfect_points(frame, result.rectified)
+    chooser = BestPointChooser.create('centroid', AreaConfig(), scene.rig)
+    decision = chooser.decide(perfect, scene.left, scene.right)
+    assert decision.has_best_point, decision.status_text()
+    error_mm = 1000.0 * np.linalg.norm(decision.best_point_world - scene.target_world)
+    assert error_mm < 3.0, f'centroid on perfect points {error_mm:.1f} mm from the top centre'

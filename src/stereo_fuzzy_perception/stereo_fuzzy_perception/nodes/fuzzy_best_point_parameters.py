@@ -77,12 +77,14 @@ class FuzzyBestPointSettings:
     min_top_fill: float = parameter(
         _AREA.min_top_fill, "Share of the top face's outline in the left image (the convex hull "
         'of its matches) that must hold matches; less is a face in pieces: refused as '
-        'uncertain_top [-]; 0 = no limit', 0.0, 1.0)
+        'uncertain_top unless the image shows it whole (outline_from_image) [-]; 0 = no '
+        'limit', 0.0, 1.0)
     outline_from_image: bool = parameter(
         _AREA.outline_from_image, "Take the top face's outline from the edges of the left "
         'rectified image that comes with the matches (StereoMatches.left_rectified) rather than '
         'from the matches alone: the matches place the rim only to within half a correlation '
-        'window')
+        'window; and take a face in pieces (min_top_fill) whole when the image shows it as one '
+        'plain region around its matches (a low-texture top matched only at its rim)')
     # --- rig pose: a pose file (static_transform_publisher form), /tf_static, or the chapter's
     # alpha, theta, z0 (+ x0, y0, vergence) converted to the same transform (core/rig_pose.py)
     rig_pose_file: str = parameter(

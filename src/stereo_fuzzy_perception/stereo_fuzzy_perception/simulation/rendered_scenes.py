@@ -117,11 +117,13 @@ class RenderedSceneSource:
             self._pipeline = StereoMatchingPipeline(self.matcher, self.point_stride)
         return self._pipeline
 
-    def render(self, seed: int, object_type: str | None = None) -> StereoFrame:
-        """Draw the scene of `seed` (random_scene) and render its stereo pair."""
+    def render(self, seed: int, object_type: str | None = None, with_maps: bool = False
+               ) -> StereoFrame:
+        """Draw the scene of `seed` (random_scene) and render its stereo pair (with its depth
+        maps and object masks when with_maps)."""
         kind = None if object_type is None else parse_object_type(object_type)
         scene = random_scene(seed, kind, rig=self.rig, camera=self.camera)
-        return self.renderer().render(scene)
+        return self.renderer().render(scene, with_maps=with_maps)
 
     def match(self, frame: StereoFrame) -> StereoMatchResult:
         """Run the correlation stage on a rendered pair."""
@@ -136,7 +138,10 @@ class RenderedSceneSource:
             SceneError: When the scene cannot be placed in view of both cameras.
         """
         frame = self.render(seed, object_type)
-        result = self.match(frame)
+        return self.scene_of_frame(frame, self.match(frame))
+
+    def scene_of_frame(self, frame: StereoFrame, result: StereoMatchResult) -> SyntheticScene:
+        """Return the scene of a rendered frame and its correlation result."""
         scene_object = frame.ground_truth.scene_object
         prism = prism_of(scene_object)
         world = transform_points(self.rig.world_from_left_camera(), result.points.xyz)

@@ -228,6 +228,10 @@ def score_errors(errors: np.ndarray, tolerance_mm: float = 3.0) -> SelectorScore
 # --- the training recipe shared by scripts/train_*.py ------------------------------------------
 
 DISTRIBUTION_SOURCE = 'distribution'
+
+CACHE_FORMAT = 2
+"""Version of what a scene cache holds; caches of another are made anew. 2: the matches carry
+the left rectified image (MatchedPoints.left_image), from which the areas' outlines come."""
 """`--source` value for the randomized scene distribution (scene_distribution.py)."""
 
 
@@ -272,9 +276,10 @@ def make_training_scenes(parser: argparse.ArgumentParser, args: argparse.Namespa
     Exits through parser.error when training and validation would use the same seed.
     """
     start = time.perf_counter()
-    recipe = {name: getattr(args, name) for name in (
+    recipe: dict[str, object] = {name: getattr(args, name) for name in (
         'source', 'per_type', 'validation_per_type', 'train_seed', 'validation_seed',
         'point_stride')}
+    recipe['cache_format'] = CACHE_FORMAT
     cache = Path(args.scene_cache) if args.scene_cache else None
     cached = _read_cache(cache, recipe)
     if cached is not None:

@@ -17,6 +17,7 @@ Steps 2 and 3 (border points, four areas) are four_areas.py.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -130,7 +131,9 @@ class AreaConfig:
             face's; 0 turns the test off.
         outline_from_image: When the matches come with the left rectified image, take the
             top face's outline from the image's edges (face_outline.py) rather than from the
-            matches alone.
+            matches alone; and a face refused as in pieces (min_top_fill) is taken after all
+            when the image shows it as one plain region around its matches
+            (face_outline.plain_face_from_image).
     """
 
     workspace_min: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -203,6 +206,10 @@ class CorrelationArea:
         object_height_sigmas: Median height of the object's region in sigmas (NaN: none).
         outline: OUTLINE_MATCHES when the points are the face's matches, OUTLINE_IMAGE when
             they are its pixels inside the outline taken from the image (face_outline.py).
+        face_in_pieces: When the area is refused because its matches fill too little of
+            their outline (min_top_fill), the face as its matches give it (status ok): a plain
+            top is matched only along its rim, and the image may still show the whole face
+            (face_outline.plain_face_from_image). None otherwise.
     """
 
     status: str
@@ -221,6 +228,7 @@ class CorrelationArea:
     surface: SurfacePlane = ASSUMED_SURFACE
     object_height_sigmas: float = math.nan
     outline: str = OUTLINE_MATCHES
+    face_in_pieces: CorrelationArea | None = None
 
     def point_weights(self) -> np.ndarray:
         """Return the points' weights (ones when none were given)."""
@@ -436,18 +444,20 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                f'({1000.0 * noise:.1f} mm) explains, more than max_top_spread_m='
                f'{config.max_top_spread_m:g}: not measured well enough for a point')
         return refused(UNCERTAIN_TOP, why, surface, regions, found.median_sigmas)
-    fill = hull_fill(u_left[band], v_left[band], step)
-    if fill < config.min_top_fill:
-        return refused(UNCERTAIN_TOP, f"the top face's matches fill {100.0 * fill:.0f} % of its "
-                                      f'outline in the image, less than min_top_fill='
-                                      f'{config.min_top_fill:g}: a face in pieces', surface,
-                       regions, found.median_sigmas)
     # A match on the pixel grid stands for the patch of the face its pixel sees,
     # Z_rect^3 / (f^2 |n . v|): |n . v| is the same for every point of a level face and Z_rect
     # is f B / d. Matches anywhere else (geometric scenes) are taken as spread evenly.
     weight = disparity[band] ** -3.0 if on_pixel_grid(u_left) else np.ones(used)
     weight /= weight.mean()
-    return CorrelationArea(STATUS_OK, '', points_in, valid, regions, used,
+    face = CorrelationArea(STATUS_OK, '', points_in, valid, regions, used,
                            float(np.median(face_heights)), xyz_world, u_left[band],
                            v_left[band], u_right[band], score[band], weight, surface,
                            found.median_sigmas)
+    fill = hull_fill(u_left[band], v_left[band], step)
+    if fill < config.min_top_fill:
+        in_pieces = refused(UNCERTAIN_TOP, f"the top face's matches fill {100.0 * fill:.0f} % of "
+                                           f'its outline in the image, less than min_top_fill='
+                                           f'{config.min_top_fill:g}: a face in pieces',
+                            surface, regions, found.median_sigmas)
+        return dataclasses.replace(in_pieces, face_in_pieces=face)
+    return face

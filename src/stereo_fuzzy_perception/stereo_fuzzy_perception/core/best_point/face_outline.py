@@ -20,7 +20,15 @@ top and what lies beyond it. So, when the matches come with the rectified image:
    points spread evenly over the whole face, each weighted by the patch of the face it sees.
 
 Where the outline cannot be taken (no image, a face at the image's or the crop's edge, a
-degenerate outline), the area stays the matches' own. ROS-free: numpy, scipy and OpenCV.
+degenerate outline), the area stays the matches' own.
+
+A plain (low-texture) top is matched only along its rim, where the window takes in the rim's
+edge: its matches are arcs that fill little of their outline, and correlation_area.py refuses
+it as a face in pieces. The image shows such a face whole, as one region of nearly constant
+intensity around those matches, bounded by the table's texture or the rim's shading.
+plain_face_from_image takes that region as the face, when it is one convex region, closed
+within the image, holding most of the matches, and of an object's size on the top plane;
+otherwise the refusal stands. ROS-free: numpy, scipy and OpenCV.
 """
 
 from __future__ import annotations
@@ -32,7 +40,11 @@ import numpy as np
 from scipy import ndimage
 
 from stereo_fuzzy_perception.core.best_point.correlation_area import OUTLINE_IMAGE, CorrelationArea
-from stereo_fuzzy_perception.core.best_point.object_segmentation import grid_step, image_regions
+from stereo_fuzzy_perception.core.best_point.object_segmentation import (
+    across_m,
+    grid_step,
+    image_regions,
+)
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 from stereo_fuzzy_perception.core.matched_points import RectifiedImage
 
@@ -54,6 +66,35 @@ MEDIAN_POINTS = 9
 
 SUBPIXEL = 4
 """Bits of sub-pixel precision when the moved outline is filled (OpenCV's `shift`)."""
+
+PLAIN_TOLERANCE_SIGMAS = 3.0
+"""A plain face's pixels lie within this many sigmas of its matches' grey levels (sigma from
+their median absolute deviation)."""
+
+PLAIN_TOLERANCE_GREY = 4.0
+"""... and at least within this many grey levels (of 255): sensor noise on a plain face."""
+
+PLAIN_OPENING_PX = 2
+"""Radius of the opening that cuts a plain region's thin bridges into the table [px]."""
+
+PLAIN_SEED_SHARE = 0.5
+"""A plain face holds at least this share of its matches (the rest sit on the rim's edge)."""
+
+PLAIN_CONVEXITY = 0.85
+"""A plain face covers at least this share of its convex hull (the objects' tops are
+convex)."""
+
+FLAT_SIDE_PX = 5
+"""Side of the square over which a match's local grey-level deviation is measured [px]."""
+
+FLAT_SHARE = 0.25
+"""The flattest share of the matches gives a plain face's grey and noise."""
+
+PLAIN_MARGIN_PX = 10
+"""Added to the box in which a plain face is looked for [px]."""
+
+MAD_TO_SIGMA = 1.4826
+"""Standard deviation of a normal distribution per median absolute deviation."""
 
 
 def face_from_image(area: CorrelationArea, image: RectifiedImage, left: CameraCalibration,
@@ -96,6 +137,109 @@ def face_from_image(area: CorrelationArea, image: RectifiedImage, left: CameraCa
     if len(columns) < min_points:
         return None
     return _on_top_plane(area, columns, rows, left, right, world_from_camera)
+
+
+def plain_face_from_image(face: CorrelationArea, image: RectifiedImage,
+                          left: CameraCalibration, right: CameraCalibration,
+                          world_from_camera: np.ndarray, min_points: int,
+                          max_across_m: float) -> CorrelationArea | None:
+    """Return a face refused as in pieces, taken whole from the image's plain region, or None.
+
+    Args:
+        face: The face as its matches give it (CorrelationArea.face_in_pieces).
+        image: The part of the left rectified image the matches were found in.
+        left: Rectified calibration of the left image.
+        right: Rectified calibration of the right image.
+        world_from_camera: 4x4 pose of the left optical frame in `world`.
+        min_points: Fewest points of a face (AreaConfig.min_points).
+        max_across_m: Longest top face on the surface (AreaConfig.max_object_across_m).
+
+    Returns:
+        The area whose points are the region's pixels on the matches' grid, cut with the top
+        face's plane; None when the image shows no such region (the refusal stands).
+    """
+    pixels = image.pixels
+    columns = np.round(face.u_left).astype(int) - image.x
+    rows = np.round(face.v_left).astype(int) - image.y
+    # The region is looked for in a box twice the matches' extent around them: a plain face
+    # reaches beyond its rim's arcs, a leak into the table reaches the box's edge.
+    reach = int(2 * max(np.ptp(columns), np.ptp(rows))) + PLAIN_MARGIN_PX
+    low = np.maximum([columns.min() - reach, rows.min() - reach], 0)
+    high = np.minimum([columns.max() + reach + 1, rows.max() + reach + 1],
+                      pixels.shape[::-1])
+    if np.any(columns < 0) or np.any(rows < 0) or np.any(columns >= pixels.shape[1]) \
+            or np.any(rows >= pixels.shape[0]):
+        return None  # matches outside the image sent: nothing to compare them with
+    crop = cv2.GaussianBlur(pixels[low[1]:high[1], low[0]:high[0]].astype(np.float32),
+                            (0, 0), SMOOTHING_SIGMA_PX)
+    grey_level = 257.0 if pixels.dtype == np.uint16 else 1.0
+    hull = None
+    for level, spread in _plain_levels(crop, rows - low[1], columns - low[0]):
+        tolerance = max(PLAIN_TOLERANCE_SIGMAS * spread, PLAIN_TOLERANCE_GREY * grey_level)
+        hull = _plain_region(np.abs(crop - level) <= tolerance, rows - low[1],
+                             columns - low[0])
+        if hull is not None:
+            break
+    if hull is None:
+        return None
+    step = grid_step(face.u_left, face.v_left)
+    on_grid = _filled_on_grid(hull.astype(float) + low + (image.x, image.y), step,
+                              face.u_left[0], face.v_left[0])
+    if len(on_grid[0]) < min_points:
+        return None
+    whole = _on_top_plane(face, *on_grid, left, right, world_from_camera)
+    if whole is None or across_m(whole.xyz_world[:, :2]) > max_across_m:
+        return None
+    return whole
+
+
+def _plain_levels(crop: np.ndarray, rows: np.ndarray, columns: np.ndarray
+                  ) -> list[tuple[float, float]]:
+    """Return the grey levels (level, sigma) a plain face is looked for at, narrower first.
+
+    The matches sit at the rim, where windows take in the rim's edge: first the grey of the
+    flattest of them (their quarter with the least local deviation, which lie on the face
+    itself) with the image's noise there, then the median and spread of all of them (a top
+    with faint texture of its own).
+    """
+    mean = cv2.blur(crop, (FLAT_SIDE_PX, FLAT_SIDE_PX))
+    square = cv2.blur(crop * crop, (FLAT_SIDE_PX, FLAT_SIDE_PX))
+    local = np.sqrt(np.maximum(square - mean * mean, 0.0))[rows, columns]
+    seeds = crop[rows, columns]
+    flat = local <= np.quantile(local, FLAT_SHARE)
+    everything = float(np.median(seeds))
+    return [(float(np.median(seeds[flat])), float(np.median(local[flat]))),
+            (everything, MAD_TO_SIGMA * float(np.median(np.abs(seeds - everything))))]
+
+
+def _plain_region(plain: np.ndarray, rows: np.ndarray, columns: np.ndarray
+                  ) -> np.ndarray | None:
+    """Return the hull (K, 2) of the plain pixels' region around the matches, or None.
+
+    Args:
+        plain: Which pixels of the crop are of the face's grey.
+        rows: The matches' rows in the crop.
+        columns: Their columns.
+    """
+    # Opening cuts the thin bridges through which the region would leak into table texture
+    # of the same grey.
+    opened = cv2.morphologyEx(plain.astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(
+        cv2.MORPH_ELLIPSE, (2 * PLAIN_OPENING_PX + 1, 2 * PLAIN_OPENING_PX + 1)))
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=4)
+    held = np.bincount(labels[rows, columns], minlength=count)
+    held[0] = 0
+    region = int(np.argmax(held))
+    if region == 0 or held[region] < PLAIN_SEED_SHARE * len(columns):
+        return None
+    x, y, width, height, size = stats[region]
+    if x == 0 or y == 0 or x + width >= plain.shape[1] or y + height >= plain.shape[0]:
+        return None  # open to the box's edge: table or background, not a face
+    contours, _ = cv2.findContours((labels == region).astype(np.uint8), cv2.RETR_EXTERNAL,
+                                   cv2.CHAIN_APPROX_NONE)
+    hull: np.ndarray = cv2.convexHull(max(contours, key=cv2.contourArea)).reshape(-1, 2)
+    if size < PLAIN_CONVEXITY * cv2.contourArea(hull):
+        return None  # not one convex face: a face with a wall or the table's texture
+    return hull
 
 
 def _hull_outline(u: np.ndarray, v: np.ndarray, step: float) -> np.ndarray | None:

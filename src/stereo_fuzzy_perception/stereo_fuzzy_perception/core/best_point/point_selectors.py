@@ -12,14 +12,15 @@ differ in x, y:
 
 - fuzzy_fitted / fuzzy_chapter: Eq. 10 over the rule base's twelve rules (fuzzy_inference.py).
 - centroid: the mean of the correlation area's points.
-- max_score: the correlation-area point with the highest correlation score.
+- max_score: the correlation-area match with the highest correlation score (the matches' own
+  area: an outline from the image has no scores of its own).
 - neural_network: the MLP baseline's offset from the centroid (neural_baseline.py).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +34,10 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     CorrelationArea,
     find_correlation_area,
 )
-from stereo_fuzzy_perception.core.best_point.face_outline import face_from_image
+from stereo_fuzzy_perception.core.best_point.face_outline import (
+    face_from_image,
+    plain_face_from_image,
+)
 from stereo_fuzzy_perception.core.best_point.four_areas import FourAreas, split_into_areas
 from stereo_fuzzy_perception.core.best_point.fuzzy_inference import infer
 from stereo_fuzzy_perception.core.best_point.neural_baseline import (
@@ -234,12 +238,11 @@ class BestPointChooser:
                                      self.rule_base.name if self.rule_base else '')
         if self.rule_base is not None:
             decision.rule_names = [rule.name for rule in self.rule_base.rules]
-        area = find_correlation_area(points, self.world_from_camera, self.area_config,
-                                     disparity_shift(left, right))
-        if area.ok and points.left_image is not None and self.area_config.outline_from_image:
-            outlined = face_from_image(area, points.left_image, left, right,
-                                       self.world_from_camera, self.area_config.min_points)
-            area = outlined or area
+        config = self.area_config
+        if self.selector == 'max_score':
+            # Scores belong to matches: an area outlined from the image has one score for all.
+            config = replace(config, outline_from_image=False)
+        area = decision_area(points, left, right, self.world_from_camera, config)
         decision.surface = area.surface
         decision.object_height_sigmas = area.object_height_sigmas
         decision.points_in, decision.points_valid = area.points_in, area.points_valid
@@ -353,11 +356,32 @@ def load_selector_files(rule_base_file: str, weights_file: str) -> None:
         raise SelectorError(str(error)) from error
 
 
+def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraCalibration,
+                  world_from_camera: np.ndarray, config: AreaConfig) -> CorrelationArea:
+    """Return step 1 as every selector sees it: the correlation area, its outline taken from
+    the image when the matches bring it (face_outline.py), or why there is none.
+
+    Training (area_features) goes through here too, so the fitted selectors learn on the
+    areas they will be given.
+    """
+    area = find_correlation_area(points, world_from_camera, config, disparity_shift(left, right))
+    if points.left_image is None or not config.outline_from_image:
+        return area
+    if area.ok:
+        return face_from_image(area, points.left_image, left, right, world_from_camera,
+                               config.min_points) or area
+    if area.face_in_pieces is not None:
+        return plain_face_from_image(area.face_in_pieces, points.left_image, left, right,
+                                     world_from_camera, config.min_points,
+                                     config.max_object_across_m) or area
+    return area
+
+
 def area_features(points: MatchedPoints, left: CameraCalibration, right: CameraCalibration,
                   world_from_camera: np.ndarray, config: AreaConfig
                   ) -> tuple[CorrelationArea, FourAreas | None]:
     """Return steps 1-3 for one scene (for training): the area and its four areas, if any."""
-    area = find_correlation_area(points, world_from_camera, config, disparity_shift(left, right))
+    area = decision_area(points, left, right, world_from_camera, config)
     if not area.ok:
         return area, None
     areas = split_into_areas(area, principal_point(left), principal_point(right))
@@ -366,5 +390,5 @@ def area_features(points: MatchedPoints, left: CameraCalibration, right: CameraC
 
 __all__ = ['DEGENERATE_AREA', 'NON_FINITE_POINT', 'OUTPUT_STATUSES', 'OUTSIDE_WORKSPACE',
            'SELECTORS', 'BestPointChooser', 'BestPointDecision', 'SelectorError',
-           'area_features', 'disparity_shift', 'load_selector_files', 'output_problem',
-           'principal_point']
+           'area_features', 'decision_area', 'disparity_shift', 'load_selector_files',
+           'output_problem', 'principal_point']
