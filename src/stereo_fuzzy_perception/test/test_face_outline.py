@@ -169,33 +169,31 @@ def test_a_face_in_pieces_whose_image_region_leaks_into_the_table_stays_refused(
     assert decision.best_point_world is None
 
 
-def test_a_plain_region_longer_than_any_object_stays_refused():
+def plain_face(image=None, max_across_m=DEFAULTS.max_object_across_m):
+    """Return plain_face_from_image on the plain box's face in pieces (its own image by
+    default), and that face."""
     points, left, right = plain_top(BOX, 1)
     pose = RIG.world_from_left_camera()
     area = find_correlation_area(points, pose, DEFAULTS, float(left.P[0, 2] - right.P[0, 2]))
     face = area.face_in_pieces
     assert face is not None
-    whole = plain_face_from_image(face, points.left_image, left, right, pose,
-                                  DEFAULTS.min_points, DEFAULTS.max_object_across_m)
+    return plain_face_from_image(face, points.left_image if image is None else image, left,
+                                 right, pose, DEFAULTS.min_points, max_across_m), face
+
+
+def test_a_plain_region_longer_than_any_object_stays_refused():
+    whole, _ = plain_face()
     assert whole is not None
-    length = across_m(whole.xyz_world[:, :2])
-    assert plain_face_from_image(face, points.left_image, left, right, pose,
-                                 DEFAULTS.min_points, 0.95 * length) is None
+    assert plain_face(max_across_m=0.95 * across_m(whole.xyz_world[:, :2]))[0] is None
 
 
 def test_plain_face_needs_the_matches_inside_the_image_sent():
-    points, left, right = plain_top(BOX, 1)
-    pose = RIG.world_from_left_camera()
-    area = find_correlation_area(points, pose, DEFAULTS, float(left.P[0, 2] - right.P[0, 2]))
-    face = area.face_in_pieces
-    assert face is not None
-    whole = points.left_image
-    assert plain_face_from_image(face, whole, left, right, pose, DEFAULTS.min_points,
-                                 DEFAULTS.max_object_across_m) is not None
+    whole, face = plain_face()
+    assert whole is not None
+    image = plain_top(BOX, 1)[0].left_image
     last = int(face.u_left.max()) - 5
-    cut = RectifiedImage(whole.pixels[:, :last], window_size=whole.window_size)
-    assert plain_face_from_image(face, cut, left, right, pose, DEFAULTS.min_points,
-                                 DEFAULTS.max_object_across_m) is None
+    cut = RectifiedImage(image.pixels[:, :last], window_size=image.window_size)
+    assert plain_face(cut)[0] is None
 
 
 def test_max_score_decides_on_the_matches_even_when_the_image_comes_with_them():
