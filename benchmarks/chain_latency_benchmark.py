@@ -25,6 +25,11 @@ only when one is chosen. Drop and stage figures are the differences of the nodes
 counters between the start and the end of each measurement (the chain is drained and fresh
 diagnostics awaited at both ends).
 
+Per-pair stages: the benchmark subscribes each node's `~/pair_timing` (nodes/pair_timing.py;
+a node measures and sends it only while subscribed, --no-breakdown leaves it off) and splits
+every decided pair's latency into stages that add up to it (chain/latency_stages.py): p50 / p99
+/ max of each, and for the pairs above the p99 which stage was furthest above its median.
+
 Before measuring, pairs are published until the first decision arrives (the fuzzy node compiles
 or loads its numba kernels at start), then for --warm-up seconds at each rate.
 Markdown tables go to stdout, progress to stderr. Timings on a shared machine are noisy.
@@ -49,6 +54,12 @@ import numpy as np
 REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))
 
+from chain.latency_stages import (  # noqa: E402
+    PairStages,
+    breakdown_markdown,
+    fuzzy_free_times,
+    pair_stages,
+)
 from chain.processes import ProcessGroup, wait_for  # noqa: E402
 from chain.ros_domains import exported_domain_id  # noqa: E402
 
@@ -207,7 +218,7 @@ class Diagnostics:
 class ChainMonitor:
     """Record the arrival time of every best point and decision, and the nodes' diagnostics."""
 
-    def __init__(self, context: Any) -> None:
+    def __init__(self, context: Any, breakdown: bool = True) -> None:
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import PointStamped
@@ -232,6 +243,12 @@ class ChainMonitor:
         ]
         self.diagnostics_subscription = self.node.create_subscription(
             DiagnosticArray, '/diagnostics', self._on_diagnostics, results)
+        # Each node's per-pair timing (nodes/pair_timing.py), sent only while subscribed.
+        self.timing: dict[str, dict[int, dict[str, str]]] = {name: {} for name in NODES}
+        self.timing_subscriptions = [
+            self.node.create_subscription(DiagnosticArray, f'/{name}/pair_timing',
+                                          self._on_timing, results)
+            for name in (NODES if breakdown else ())]
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
 
@@ -247,7 +264,8 @@ class ChainMonitor:
 
     def matched(self) -> bool:
         """Return True when every output topic and every node's diagnostics have a publisher."""
-        return (all(sub.get_publisher_count() > 0 for sub in self.subscriptions)
+        return (all(sub.get_publisher_count() > 0
+                    for sub in (*self.subscriptions, *self.timing_subscriptions))
                 and self.diagnostics_subscription.get_publisher_count() >= len(NODES))
 
     @staticmethod
@@ -261,6 +279,12 @@ class ChainMonitor:
         stamp_ns = self._stamp_ns(msg.header)
         self.decisions[stamp_ns] = time.time_ns()
         self.statuses[stamp_ns] = str(msg.status)
+
+    def _on_timing(self, msg: Any) -> None:
+        for status in msg.status:
+            if status.name in self.timing:
+                self.timing[status.name][self._stamp_ns(msg.header)] = {
+                    value.key: value.value for value in status.values}
 
     def _on_diagnostics(self, msg: Any) -> None:
         for status in msg.status:
@@ -306,6 +330,7 @@ class Measurement:
     correlation_mean_ms: float | None
     stage_ms: dict[str, float]
     statuses: dict[str, int]
+    pair_stages: list[PairStages]
 
 
 def counter_deltas(before: dict[str, str], after: dict[str, str],
@@ -370,6 +395,7 @@ def measure(monitor: ChainMonitor, publisher: PairPublisher, group: ProcessGroup
     published = list(publisher.published_ns)
     decided = [stamp for stamp in published if stamp in monitor.decisions]
     chosen = [stamp for stamp in published if stamp in monitor.best_points]
+    fuzzy_free = fuzzy_free_times(monitor.timing[NODES[2]])
     statuses: dict[str, int] = {}
     for stamp in decided:
         statuses[monitor.statuses[stamp]] = statuses.get(monitor.statuses[stamp], 0) + 1
@@ -394,7 +420,11 @@ def measure(monitor: ChainMonitor, publisher: PairPublisher, group: ProcessGroup
                              ('decisions made', 'decisions refused')),
         correlation_mean_ms=correlation_mean_ms(before[CORRELATION_STATUS],
                                                 after[CORRELATION_STATUS]),
-        stage_ms=stage_means(stage_samples), statuses=statuses)
+        stage_ms=stage_means(stage_samples), statuses=statuses,
+        pair_stages=[stages for stamp in decided if (stages := pair_stages(
+            stamp, monitor.decisions[stamp],
+            {node: monitor.timing[node][stamp] for node in NODES
+             if stamp in monitor.timing[node]}, fuzzy_free.get(stamp, 0))) is not None])
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -470,6 +500,11 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
         statuses = ', '.join(f'{name}: {count}' for name, count in sorted(r.statuses.items()))
         print(f'| {r.rate_hz:g} | {r.publish_ms_p99:.2f} | {statuses} |')
 
+    for r in results:
+        if r.pair_stages:
+            print(f"\n## {r.rate_hz:g} Hz: per-pair stages (the nodes' ~/pair_timing)")
+            print(breakdown_markdown(r.pair_stages))
+
     print('\n### Goals: p99 < 100 ms at 15 Hz with no pair dropped by the sync node; at 30 Hz '
           'p99 < 66 ms (two frame periods), none dropped by the sync node, >= 29 decisions '
           'per second\n')
@@ -524,7 +559,7 @@ def run(args: argparse.Namespace) -> list[Measurement]:
         publisher: PairPublisher | None = None
         monitor: ChainMonitor | None = None
         try:
-            monitor = ChainMonitor(context)
+            monitor = ChainMonitor(context, not args.no_breakdown)
             publisher = PairPublisher(context, pairs, args.pairs_per_scene)
             for executable in NODES:
                 group.start_node(PACKAGE, executable,
@@ -574,6 +609,9 @@ def main() -> None:
                         help="correlation_node's roi.decision_wait_s (default: the node's)")
     parser.add_argument('--no-scene-change-detection', action='store_true',
                         help="turn correlation_node's roi.detect_scene_change off")
+    parser.add_argument('--no-breakdown', action='store_true',
+                        help="do not subscribe the nodes' per-pair timing (~/pair_timing), "
+                        'so they measure and send nothing extra')
     parser.add_argument('--log-dir', help="where the nodes' logs go (default: a temp folder)")
     parser.add_argument('--latencies', metavar='CSV',
                         help='also write every decided pair: rate, index, decision latency [ms], '

@@ -59,6 +59,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     stereo_pair_to_domain,
 )
 from stereo_fuzzy_perception.nodes.correlation_parameters import CorrelationSettings
+from stereo_fuzzy_perception.nodes.pair_timing import PairTimingPublisher
 
 DROP_REASONS = ('superseded', 'image_too_large', 'calibration', 'size_mismatch', 'encoding',
                 'matcher_input', 'opencv', 'internal')
@@ -107,9 +108,11 @@ class CorrelationNode(Node):
         self.diagnostics_publisher = self.create_publisher(
             DiagnosticArray, topic_names.DIAGNOSTICS, qos.DIAGNOSTICS)
         self._input_qos = input_qos
+        # Per-pair timing on ~/pair_timing, only while someone subscribes (a benchmark).
+        self.pair_timing = PairTimingPublisher(self)
 
         self._condition = threading.Condition()
-        self._pending: deque[StereoPair] = deque()
+        self._pending: deque[tuple[StereoPair, int]] = deque()  # and its arrival [ns]
         self._stopping = False
         self.received = 0
         self.processed = 0
@@ -147,6 +150,7 @@ class CorrelationNode(Node):
         self.get_logger().info(f'matcher settings now {self.pipeline.config}')
 
     def _on_pair(self, pair: StereoPair) -> None:
+        arrived_ns = time.time_ns()
         with self._condition:
             self.received += 1
             self.pair_sequence.observe(int(pair.sequence))
@@ -157,7 +161,7 @@ class CorrelationNode(Node):
                     'dropped a pair that waited while the previous one was matched '
                     f"({self.dropped['superseded']} so far): input faster than matching",
                     throttle_duration_sec=5.0)
-            self._pending.append(pair)
+            self._pending.append((pair, arrived_ns))
             self._condition.notify()
 
     def _on_decision(self, msg: FuzzyDecision) -> None:
@@ -234,13 +238,14 @@ class CorrelationNode(Node):
                     self._condition.wait(remaining)
                 if self._stopping:
                     return
-                pair = self._pending.popleft() if self._pending else None
-            if pair is None:
+                pending = self._pending.popleft() if self._pending else None
+            if pending is None:
                 continue
             last_start = time.monotonic()
-            self._process(pair)
+            self._process(*pending)
 
-    def _process(self, pair: StereoPair) -> None:
+    def _process(self, pair: StereoPair, arrived_ns: int = 0) -> None:
+        timer = self.pair_timing.start(arrived_ns)
         try:
             check_pair_size(pair, self.settings.max_image_pixels)
             left, right, calibration = stereo_pair_to_domain(pair)
@@ -250,13 +255,20 @@ class CorrelationNode(Node):
                 raise RectificationError(
                     f'left image is {left.shape[1]}x{left.shape[0]} but right image is '
                     f'{right.shape[1]}x{right.shape[0]}')
+            if timer is not None:
+                timer.step('decode')
             plan = self._plan(pair, left, calibration)
+            if timer is not None:
+                timer.step('plan')
             # A disparity subscriber gets every row; otherwise only the rows that
             # point_stride publishes are matched.
             result = self.pipeline.process(
                 left, right, calibration,
                 full_disparity=self.disparity_publisher.get_subscription_count() > 0,
                 region=plan.region)
+            if timer is not None:
+                timer.step('pipeline')
+                timer.steps(result.timings_ms)
             stamp_s = stamp_seconds(pair.header.stamp)
             if result.region_problem:
                 self.tracker.region_failed(result.region_problem, stamp_s)
@@ -264,6 +276,8 @@ class CorrelationNode(Node):
                 result.disparity_map, stamp_s, result.rectified, self.pipeline.point_stride,
                 (result.disparity_map.config.min_disparity,
                  result.disparity_map.config.disparity_range)) is not None
+            if timer is not None:
+                timer.step('regions from matches')
         except ImageSizeError as error:
             self._drop('image_too_large', str(error))
             return
@@ -292,7 +306,12 @@ class CorrelationNode(Node):
                 header, result.rectified, result.points, result.disparity_map.config)
             matches.sequence = self.processed + 1
             matches.pair_sequence = pair.sequence
+            if timer is not None:
+                timer.step('pack')
             self.matches_publisher.publish(matches)
+            if timer is not None:
+                timer.step('publish matches')
+                timer.event('matches out')
             if self.points_publisher.get_subscription_count() > 0:
                 self.points_publisher.publish(matched_points_to_cloud(result.points, header))
             if self.disparity_publisher.get_subscription_count() > 0:
@@ -304,6 +323,11 @@ class CorrelationNode(Node):
             self._drop('internal', f'{error!r}\n{traceback.format_exc()}')
             return
         timings = dict(result.timings_ms, publish=1e3 * (time.perf_counter() - start))
+        if timer is not None:
+            timer.note('matched', 'area' if result.region is not None
+                       else f'whole: {result.region_problem or plan.reason}')
+            timer.note('points', str(len(result.points)))
+            self.pair_timing.publish(timer, pair.header.stamp)
         with self._condition:
             self.searched[result.region_problem or plan.reason or 'area'] += 1
             if plan.periodic_skipped and result.region is not None:
