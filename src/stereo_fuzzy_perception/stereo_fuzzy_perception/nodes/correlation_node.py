@@ -42,6 +42,7 @@ from stereo_fuzzy_perception.core.matching.disparity_range import DisparityRange
 from stereo_fuzzy_perception.core.matching.rectification import RectificationError
 from stereo_fuzzy_perception.core.matching.scene_change import block_means
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
+from stereo_fuzzy_perception.core.matching.undecided_matches import UndecidedMatches
 from stereo_fuzzy_perception.core.matching.window_matcher import MatcherInputError, warm_up
 from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
 from stereo_fuzzy_perception.nodes import qos, topic_names
@@ -55,6 +56,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     check_pair_size,
     disparity_image_message,
     matched_points_to_cloud,
+    stamp_to_ns,
     stereo_matches_message,
     stereo_pair_to_domain,
 )
@@ -116,6 +118,9 @@ class CorrelationNode(Node):
         self._stopping = False
         self.received = 0
         self.processed = 0
+        # Matches without a decision yet; the next pair waits while max_undecided_matches are.
+        self.undecided = UndecidedMatches()
+        self.held_for_decisions = 0
         self.pair_sequence = SequenceGaps()
         self.dropped: Counter[str] = Counter({reason: 0 for reason in DROP_REASONS})
         self.last_error = ''
@@ -127,7 +132,8 @@ class CorrelationNode(Node):
         self._worker = threading.Thread(target=self._work, name='correlation_worker',
                                         daemon=True)
         self._worker.start()
-        self.create_subscription(FuzzyDecision, DECISION_TOPIC, self._on_decision, qos.RESULTS)
+        self.decision_subscription = self.create_subscription(
+            FuzzyDecision, DECISION_TOPIC, self._on_decision, qos.RESULTS)
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(
             f'correlation_node started: {self.pipeline.config.method}, window '
@@ -166,6 +172,9 @@ class CorrelationNode(Node):
 
     def _on_decision(self, msg: FuzzyDecision) -> None:
         """Track the decision's correlation area (or search everywhere when it found none)."""
+        with self._condition:
+            self.undecided.decided(stamp_to_ns(msg.header.stamp))
+            self._condition.notify_all()  # the worker may wait for this decision
         try:
             area = decision_to_tracked_area(msg)
             known = self._pose
@@ -236,6 +245,11 @@ class CorrelationNode(Node):
                     if remaining <= 0.0:
                         break
                     self._condition.wait(remaining)
+                held = False
+                while not self._stopping and (wait := self._undecided_wait()) > 0.0:
+                    held = True  # newer pairs replace the waiting one meanwhile
+                    self._condition.wait(wait)
+                self.held_for_decisions += int(held)
                 if self._stopping:
                     return
                 pending = self._pending.popleft() if self._pending else None
@@ -243,6 +257,13 @@ class CorrelationNode(Node):
                 continue
             last_start = time.monotonic()
             self._process(*pending)
+
+    def _undecided_wait(self) -> float:
+        """Return how long the next pair must wait for decisions [s] (0: match it now)."""
+        settings = self.settings
+        limit = (settings.max_undecided_matches
+                 if self.decision_subscription.get_publisher_count() > 0 else 0)
+        return self.undecided.wait_s(time.monotonic(), limit, settings.undecided_timeout_s)
 
     def _process(self, pair: StereoPair, arrived_ns: int = 0) -> None:
         timer = self.pair_timing.start(arrived_ns)
@@ -308,6 +329,8 @@ class CorrelationNode(Node):
             matches.pair_sequence = pair.sequence
             if timer is not None:
                 timer.step('pack')
+            with self._condition:  # before publishing: its decision may come back at once
+                self.undecided.published(stamp_to_ns(header.stamp), time.monotonic())
             self.matches_publisher.publish(matches)
             if timer is not None:
                 timer.step('publish matches')
@@ -394,6 +417,11 @@ class CorrelationNode(Node):
                     self.searched[FROM_MATCHES],
                 **{f'decisions waited for after a failed region: {outcome}': count
                    for outcome, count in self.decision_waits.items()},
+                'pairs held while max_undecided_matches were undecided':
+                    self.held_for_decisions,
+                'undecided matches': len(self.undecided),
+                'undecided matches expired (no decision within undecided_timeout_s)':
+                    self.undecided.expired,
                 **self.pair_sequence.report(topic_names.PAIR),
                 **{f'dropped {reason}': count for reason, count in self.dropped.items()},
                 'last valid points': self.last_points,
