@@ -121,6 +121,7 @@ class CorrelationNode(Node):
         # Matches without a decision yet; the next pair waits while max_undecided_matches are.
         self.undecided = UndecidedMatches()
         self.held_for_decisions = 0
+        self.waiting_for_decisions = False  # the worker holds a pair until a decision comes
         self.pair_sequence = SequenceGaps()
         self.dropped: Counter[str] = Counter({reason: 0 for reason in DROP_REASONS})
         self.last_error = ''
@@ -247,8 +248,9 @@ class CorrelationNode(Node):
                     self._condition.wait(remaining)
                 held = False
                 while not self._stopping and (wait := self._undecided_wait()) > 0.0:
-                    held = True  # newer pairs replace the waiting one meanwhile
+                    held = self.waiting_for_decisions = True  # newer pairs replace this one
                     self._condition.wait(wait)
+                self.waiting_for_decisions = False
                 self.held_for_decisions += int(held)
                 if self._stopping:
                     return
