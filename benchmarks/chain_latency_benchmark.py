@@ -15,8 +15,10 @@ tracking of the previous decision's area; 30 at 30 Hz: an object that stays a se
 rig sees it). A second node subscribes best_point, best_point/decision and /diagnostics.
 --no-tracking turns correlation_node's tracking off (roi.track false: every pair matched on the
 whole image), --no-scene-change-detection its comparison of block means before matching
-(roi.detect_scene_change false), --decision-wait-s sets how long the pair after a failed region
-waits for that pair's decision (roi.decision_wait_s; 0 = matched on the whole image at once);
+(roi.detect_scene_change false), --max-undecided-matches N how many matches it may have
+published without a decision before it matches the next pair (0: never waits),
+--decision-wait-s sets how long the pair after a failed region waits for that pair's decision
+(roi.decision_wait_s; 0 = matched on the whole image at once);
 where pairs were matched is reported from its /diagnostics.
 
 Latency = arrival time in this process - pair header stamp (both CLOCK_REALTIME). A decision
@@ -528,7 +530,8 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
 
 def node_arguments(executable: str, tracking: bool = True,
                    decision_wait_s: float | None = None,
-                   scene_change: bool = True) -> list[str]:
+                   scene_change: bool = True,
+                   max_undecided_matches: int | None = None) -> list[str]:
     """Return the --ros-args of a node: the demo parameter file, or the fallback overrides."""
     overrides: tuple[str, ...] = LIVE_OVERRIDES.get(executable, ())
     if executable == 'correlation_node' and not tracking:
@@ -537,6 +540,8 @@ def node_arguments(executable: str, tracking: bool = True,
         overrides = (*overrides, 'roi.detect_scene_change:=false')
     if executable == 'correlation_node' and decision_wait_s is not None:
         overrides = (*overrides, f'roi.decision_wait_s:={decision_wait_s!r}')
+    if executable == 'correlation_node' and max_undecided_matches is not None:
+        overrides = (*overrides, f'max_undecided_matches:={max_undecided_matches}')
     if DEMO_PARAMS.exists():
         files = ['--params-file', str(DEMO_PARAMS)]
     else:
@@ -565,7 +570,8 @@ def run(args: argparse.Namespace) -> list[Measurement]:
                 group.start_node(PACKAGE, executable,
                                  *node_arguments(executable, not args.no_tracking,
                                                  args.decision_wait_s,
-                                                 not args.no_scene_change_detection))
+                                                 not args.no_scene_change_detection,
+                                                 args.max_undecided_matches))
             wait_for(lambda: publisher.matched() and monitor.matched(), 60.0,
                      "the chain's subscriptions and publishers to match", monitor.spin, group)
             progress('publishing until the first decision (kernels warm)')
@@ -609,6 +615,9 @@ def main() -> None:
                         help="correlation_node's roi.decision_wait_s (default: the node's)")
     parser.add_argument('--no-scene-change-detection', action='store_true',
                         help="turn correlation_node's roi.detect_scene_change off")
+    parser.add_argument('--max-undecided-matches', type=int, metavar='N',
+                        help="correlation_node's max_undecided_matches (default: the node's; "
+                        '0 = never wait for decisions)')
     parser.add_argument('--no-breakdown', action='store_true',
                         help="do not subscribe the nodes' per-pair timing (~/pair_timing), "
                         'so they measure and send nothing extra')
@@ -629,6 +638,8 @@ def main() -> None:
         params += f', roi.decision_wait_s {args.decision_wait_s:g}'
     if args.no_scene_change_detection:
         params += ', roi.detect_scene_change false'
+    if args.max_undecided_matches is not None:
+        params += f', max_undecided_matches {args.max_undecided_matches}'
     print_tables(results, params, machine)
     if args.latencies:
         with open(args.latencies, 'w', encoding='utf-8') as output:
