@@ -27,7 +27,7 @@ only when one is chosen. Drop and stage figures are the differences of the nodes
 counters between the start and the end of each measurement (the chain is drained and fresh
 diagnostics awaited at both ends).
 
-Per-pair stages: the benchmark subscribes each node's `~/pair_timing` (nodes/pair_timing.py;
+Per-pair stages: the benchmark subscribes each node's per-pair timing (nodes/pair_timing.py;
 a node measures and sends it only while subscribed, --no-breakdown leaves it off) and splits
 every decided pair's latency into stages that add up to it (chain/latency_stages.py): p50 / p99
 / max of each, and for the pairs above the p99 which stage was furthest above its median.
@@ -88,6 +88,8 @@ DECISION_WAIT_PREFIX = 'decisions waited for after a failed region: '
 TRACKING_COUNTERS = ('periodic whole images skipped, image unchanged outside the area',
                      'regions found in whole-image matches',
                      'pairs matched in a region found in whole-image matches')
+# Each node's per-pair timing (nodes/pair_timing.py), in NODES order; the nodes run at the root.
+TIMING_TOPICS = ('/pair/timing', '/matches/timing', '/best_point/timing')
 SCENE_OBJECTS = ('cubic_square', 'cylinder', 'cubic_rectangle', 'circle')
 
 
@@ -248,9 +250,8 @@ class ChainMonitor:
         # Each node's per-pair timing (nodes/pair_timing.py), sent only while subscribed.
         self.timing: dict[str, dict[int, dict[str, str]]] = {name: {} for name in NODES}
         self.timing_subscriptions = [
-            self.node.create_subscription(DiagnosticArray, f'/{name}/pair_timing',
-                                          self._on_timing, results)
-            for name in (NODES if breakdown else ())]
+            self.node.create_subscription(DiagnosticArray, topic, self._on_timing, results)
+            for topic in (TIMING_TOPICS if breakdown else ())]
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
 
@@ -504,7 +505,7 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
 
     for r in results:
         if r.pair_stages:
-            print(f"\n## {r.rate_hz:g} Hz: per-pair stages (the nodes' ~/pair_timing)")
+            print(f"\n## {r.rate_hz:g} Hz: per-pair stages (the nodes' per-pair timing topics)")
             print(breakdown_markdown(r.pair_stages))
 
     print('\n### Goals: p99 < 100 ms at 15 Hz with no pair dropped by the sync node; at 30 Hz '
@@ -619,8 +620,8 @@ def main() -> None:
                         help="correlation_node's max_undecided_matches (default: the node's; "
                         '0 = never wait for decisions)')
     parser.add_argument('--no-breakdown', action='store_true',
-                        help="do not subscribe the nodes' per-pair timing (~/pair_timing), "
-                        'so they measure and send nothing extra')
+                        help="do not subscribe the nodes' per-pair timing topics, so they "
+                        'measure and send nothing extra')
     parser.add_argument('--log-dir', help="where the nodes' logs go (default: a temp folder)")
     parser.add_argument('--latencies', metavar='CSV',
                         help='also write every decided pair: rate, index, decision latency [ms], '

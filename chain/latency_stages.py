@@ -1,6 +1,6 @@
 """Split the chain's latency of each pair into stages, and say which stages made the tail.
 
-ROS-free: the inputs are the per-pair timing values the nodes publish on `~/pair_timing`
+ROS-free: the inputs are the per-pair timing values the nodes publish
 (stereo_fuzzy_perception/nodes/pair_timing.py: `<event> [ns]`, `<step> [ms]`, `cpu [ms]`,
 `gc [ms]`, text notes) as plain dicts, and the time the decision reached the benchmark.
 

@@ -257,7 +257,7 @@ def test_pair_timing_is_sent_only_to_a_subscriber(harness):
     h.publish_and_wait_processed(stereo_pair(stamp_sec=1))
     assert h.node.pair_timing.start(0) is None  # nobody listens: nothing measured or sent
     timings: list = []
-    h.probe.create_subscription(DiagnosticArray, '/correlation_node/pair_timing',
+    h.probe.create_subscription(DiagnosticArray, 'matches/timing',
                                 timings.append, qos.RESULTS)
     wait_until(lambda: h.node.pair_timing.publisher.get_subscription_count() > 0, TIMEOUT,
                'the node to see the timing subscriber', h.executor)

@@ -110,8 +110,8 @@ class CorrelationNode(Node):
         self.diagnostics_publisher = self.create_publisher(
             DiagnosticArray, topic_names.DIAGNOSTICS, qos.DIAGNOSTICS)
         self._input_qos = input_qos
-        # Per-pair timing on ~/pair_timing, only while someone subscribes (a benchmark).
-        self.pair_timing = PairTimingPublisher(self)
+        # Per-pair timing, only while someone subscribes (a benchmark).
+        self.pair_timing = PairTimingPublisher(self, topic_names.MATCHES_TIMING)
 
         self._condition = threading.Condition()
         self._pending: deque[tuple[StereoPair, int]] = deque()  # and its arrival [ns]

@@ -212,8 +212,8 @@ class FuzzyBestPointNode(Node):
                                                        qos.RESULTS)
         self.diagnostics_publisher = self.create_publisher(
             DiagnosticArray, topic_names.DIAGNOSTICS, qos.DIAGNOSTICS)
-        # Per-pair timing on ~/pair_timing, only while someone subscribes (a benchmark).
-        self.pair_timing = PairTimingPublisher(self)
+        # Per-pair timing, only while someone subscribes (a benchmark).
+        self.pair_timing = PairTimingPublisher(self, topic_names.DECISION_TIMING)
         self.matches_subscription = self.create_subscription(
             StereoMatches, topic_names.MATCHES, self._on_matches, qos.RESULTS)
         self.create_subscription(TFMessage, topic_names.TF_STATIC, self._on_tf_static,

@@ -1,8 +1,10 @@
-"""Per-pair timing of a node on a debug topic (`~/pair_timing`), sent only while someone listens.
+"""Per-pair timing of a node on a debug topic, sent only while someone listens.
 
 Each node of the chain can tell, for every pair it handled, when the pair arrived, when it left
 and what the steps in between took, so a benchmark can split the chain's latency into stages
-(benchmarks/chain_latency_benchmark.py). Nothing is measured beyond a clock read or two, and
+(benchmarks/chain_latency_benchmark.py). The topic sits next to the node's output
+(topic_names: stereo_sync_node `pair/timing`, correlation_node `matches/timing`,
+fuzzy_best_point_node `best_point/timing`). Nothing is measured beyond a clock read or two, and
 nothing is built or published, while the topic has no subscriber: `active()` is one call into
 rmw per pair.
 
@@ -30,8 +32,6 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 
 from stereo_fuzzy_perception.nodes import qos
-
-TOPIC = '~/pair_timing'
 
 
 class GarbageCollectionClock:
@@ -114,11 +114,11 @@ class PairTimer:
 
 
 class PairTimingPublisher:
-    """Publish PairTimers on `~/pair_timing` while the topic has a subscriber."""
+    """Publish PairTimers on `topic` while it has a subscriber."""
 
-    def __init__(self, node: Node) -> None:
+    def __init__(self, node: Node, topic: str) -> None:
         self._node = node
-        self.publisher = node.create_publisher(DiagnosticArray, TOPIC, qos.RESULTS)
+        self.publisher = node.create_publisher(DiagnosticArray, topic, qos.RESULTS)
         self.garbage = GarbageCollectionClock()
 
     def start(self, in_ns: int) -> PairTimer | None:

@@ -199,8 +199,8 @@ class StereoSyncNode(Node):
         self.pair_publisher = self.create_publisher(StereoPair, topic_names.PAIR, qos.RESULTS)
         self.diagnostics_publisher = self.create_publisher(
             DiagnosticArray, topic_names.DIAGNOSTICS, qos.DIAGNOSTICS)
-        # Per-pair timing on ~/pair_timing, only while someone subscribes (a benchmark).
-        self.pair_timing = PairTimingPublisher(self)
+        # Per-pair timing, only while someone subscribes (a benchmark).
+        self.pair_timing = PairTimingPublisher(self, topic_names.PAIR_TIMING)
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self._start_topics()
 
