@@ -148,7 +148,7 @@ class CorrelationSettings:
         1, 'Pairs waiting while one is matched; when full the oldest is dropped. 1 = the newest '
         'pair always wins (bounded latency); more tolerates bursts in replays', 1, 30)
     max_undecided_matches: int = parameter(
-        2, 'Most matches published and not yet answered by a decision (best_point/decision) '
+        3, 'Most matches published and not yet answered by a decision (best_point/decision) '
         'before the next pair is matched; meanwhile newer pairs replace the waiting one, so '
         'latency stays bounded when deciding is slower than matching. 0 = never wait (also '
         'while nobody publishes decisions)', 0, 100)
