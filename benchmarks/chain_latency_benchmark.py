@@ -15,8 +15,10 @@ tracking of the previous decision's area; 30 at 30 Hz: an object that stays a se
 rig sees it). A second node subscribes best_point, best_point/decision and /diagnostics.
 --no-tracking turns correlation_node's tracking off (roi.track false: every pair matched on the
 whole image), --no-scene-change-detection its comparison of block means before matching
-(roi.detect_scene_change false), --decision-wait-s sets how long the pair after a failed region
-waits for that pair's decision (roi.decision_wait_s; 0 = matched on the whole image at once);
+(roi.detect_scene_change false), --max-undecided-matches N how many matches it may have
+published without a decision before it matches the next pair (0: never waits),
+--decision-wait-s sets how long the pair after a failed region waits for that pair's decision
+(roi.decision_wait_s; 0 = matched on the whole image at once);
 where pairs were matched is reported from its /diagnostics.
 
 Latency = arrival time in this process - pair header stamp (both CLOCK_REALTIME). A decision
@@ -24,6 +26,11 @@ Latency = arrival time in this process - pair header stamp (both CLOCK_REALTIME)
 only when one is chosen. Drop and stage figures are the differences of the nodes' /diagnostics
 counters between the start and the end of each measurement (the chain is drained and fresh
 diagnostics awaited at both ends).
+
+Per-pair stages: the benchmark subscribes each node's per-pair timing (nodes/pair_timing.py;
+a node measures and sends it only while subscribed, --no-breakdown leaves it off) and splits
+every decided pair's latency into stages that add up to it (chain/latency_stages.py): p50 / p99
+/ max of each, and for the pairs above the p99 which stage was furthest above its median.
 
 Before measuring, pairs are published until the first decision arrives (the fuzzy node compiles
 or loads its numba kernels at start), then for --warm-up seconds at each rate.
@@ -49,6 +56,12 @@ import numpy as np
 REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))
 
+from chain.latency_stages import (  # noqa: E402
+    PairStages,
+    breakdown_markdown,
+    fuzzy_free_times,
+    pair_stages,
+)
 from chain.processes import ProcessGroup, wait_for  # noqa: E402
 from chain.ros_domains import exported_domain_id  # noqa: E402
 
@@ -75,6 +88,8 @@ DECISION_WAIT_PREFIX = 'decisions waited for after a failed region: '
 TRACKING_COUNTERS = ('periodic whole images skipped, image unchanged outside the area',
                      'regions found in whole-image matches',
                      'pairs matched in a region found in whole-image matches')
+# Each node's per-pair timing (nodes/pair_timing.py), in NODES order; the nodes run at the root.
+TIMING_TOPICS = ('/pair/timing', '/matches/timing', '/best_point/timing')
 SCENE_OBJECTS = ('cubic_square', 'cylinder', 'cubic_rectangle', 'circle')
 
 
@@ -207,7 +222,7 @@ class Diagnostics:
 class ChainMonitor:
     """Record the arrival time of every best point and decision, and the nodes' diagnostics."""
 
-    def __init__(self, context: Any) -> None:
+    def __init__(self, context: Any, breakdown: bool = True) -> None:
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import PointStamped
@@ -232,6 +247,11 @@ class ChainMonitor:
         ]
         self.diagnostics_subscription = self.node.create_subscription(
             DiagnosticArray, '/diagnostics', self._on_diagnostics, results)
+        # Each node's per-pair timing (nodes/pair_timing.py), sent only while subscribed.
+        self.timing: dict[str, dict[int, dict[str, str]]] = {name: {} for name in NODES}
+        self.timing_subscriptions = [
+            self.node.create_subscription(DiagnosticArray, topic, self._on_timing, results)
+            for topic in (TIMING_TOPICS if breakdown else ())]
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
 
@@ -247,7 +267,8 @@ class ChainMonitor:
 
     def matched(self) -> bool:
         """Return True when every output topic and every node's diagnostics have a publisher."""
-        return (all(sub.get_publisher_count() > 0 for sub in self.subscriptions)
+        return (all(sub.get_publisher_count() > 0
+                    for sub in (*self.subscriptions, *self.timing_subscriptions))
                 and self.diagnostics_subscription.get_publisher_count() >= len(NODES))
 
     @staticmethod
@@ -261,6 +282,12 @@ class ChainMonitor:
         stamp_ns = self._stamp_ns(msg.header)
         self.decisions[stamp_ns] = time.time_ns()
         self.statuses[stamp_ns] = str(msg.status)
+
+    def _on_timing(self, msg: Any) -> None:
+        for status in msg.status:
+            if status.name in self.timing:
+                self.timing[status.name][self._stamp_ns(msg.header)] = {
+                    value.key: value.value for value in status.values}
 
     def _on_diagnostics(self, msg: Any) -> None:
         for status in msg.status:
@@ -306,6 +333,7 @@ class Measurement:
     correlation_mean_ms: float | None
     stage_ms: dict[str, float]
     statuses: dict[str, int]
+    pair_stages: list[PairStages]
 
 
 def counter_deltas(before: dict[str, str], after: dict[str, str],
@@ -370,6 +398,7 @@ def measure(monitor: ChainMonitor, publisher: PairPublisher, group: ProcessGroup
     published = list(publisher.published_ns)
     decided = [stamp for stamp in published if stamp in monitor.decisions]
     chosen = [stamp for stamp in published if stamp in monitor.best_points]
+    fuzzy_free = fuzzy_free_times(monitor.timing[NODES[2]])
     statuses: dict[str, int] = {}
     for stamp in decided:
         statuses[monitor.statuses[stamp]] = statuses.get(monitor.statuses[stamp], 0) + 1
@@ -394,7 +423,11 @@ def measure(monitor: ChainMonitor, publisher: PairPublisher, group: ProcessGroup
                              ('decisions made', 'decisions refused')),
         correlation_mean_ms=correlation_mean_ms(before[CORRELATION_STATUS],
                                                 after[CORRELATION_STATUS]),
-        stage_ms=stage_means(stage_samples), statuses=statuses)
+        stage_ms=stage_means(stage_samples), statuses=statuses,
+        pair_stages=[stages for stamp in decided if (stages := pair_stages(
+            stamp, monitor.decisions[stamp],
+            {node: monitor.timing[node][stamp] for node in NODES
+             if stamp in monitor.timing[node]}, fuzzy_free.get(stamp, 0))) is not None])
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -470,6 +503,11 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
         statuses = ', '.join(f'{name}: {count}' for name, count in sorted(r.statuses.items()))
         print(f'| {r.rate_hz:g} | {r.publish_ms_p99:.2f} | {statuses} |')
 
+    for r in results:
+        if r.pair_stages:
+            print(f"\n## {r.rate_hz:g} Hz: per-pair stages (the nodes' per-pair timing topics)")
+            print(breakdown_markdown(r.pair_stages))
+
     print('\n### Goals: p99 < 100 ms at 15 Hz with no pair dropped by the sync node; at 30 Hz '
           'p99 < 66 ms (two frame periods), none dropped by the sync node, >= 29 decisions '
           'per second\n')
@@ -493,7 +531,8 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
 
 def node_arguments(executable: str, tracking: bool = True,
                    decision_wait_s: float | None = None,
-                   scene_change: bool = True) -> list[str]:
+                   scene_change: bool = True,
+                   max_undecided_matches: int | None = None) -> list[str]:
     """Return the --ros-args of a node: the demo parameter file, or the fallback overrides."""
     overrides: tuple[str, ...] = LIVE_OVERRIDES.get(executable, ())
     if executable == 'correlation_node' and not tracking:
@@ -502,6 +541,8 @@ def node_arguments(executable: str, tracking: bool = True,
         overrides = (*overrides, 'roi.detect_scene_change:=false')
     if executable == 'correlation_node' and decision_wait_s is not None:
         overrides = (*overrides, f'roi.decision_wait_s:={decision_wait_s!r}')
+    if executable == 'correlation_node' and max_undecided_matches is not None:
+        overrides = (*overrides, f'max_undecided_matches:={max_undecided_matches}')
     if DEMO_PARAMS.exists():
         files = ['--params-file', str(DEMO_PARAMS)]
     else:
@@ -524,13 +565,14 @@ def run(args: argparse.Namespace) -> list[Measurement]:
         publisher: PairPublisher | None = None
         monitor: ChainMonitor | None = None
         try:
-            monitor = ChainMonitor(context)
+            monitor = ChainMonitor(context, not args.no_breakdown)
             publisher = PairPublisher(context, pairs, args.pairs_per_scene)
             for executable in NODES:
                 group.start_node(PACKAGE, executable,
                                  *node_arguments(executable, not args.no_tracking,
                                                  args.decision_wait_s,
-                                                 not args.no_scene_change_detection))
+                                                 not args.no_scene_change_detection,
+                                                 args.max_undecided_matches))
             wait_for(lambda: publisher.matched() and monitor.matched(), 60.0,
                      "the chain's subscriptions and publishers to match", monitor.spin, group)
             progress('publishing until the first decision (kernels warm)')
@@ -574,6 +616,12 @@ def main() -> None:
                         help="correlation_node's roi.decision_wait_s (default: the node's)")
     parser.add_argument('--no-scene-change-detection', action='store_true',
                         help="turn correlation_node's roi.detect_scene_change off")
+    parser.add_argument('--max-undecided-matches', type=int, metavar='N',
+                        help="correlation_node's max_undecided_matches (default: the node's; "
+                        '0 = never wait for decisions)')
+    parser.add_argument('--no-breakdown', action='store_true',
+                        help="do not subscribe the nodes' per-pair timing topics, so they "
+                        'measure and send nothing extra')
     parser.add_argument('--log-dir', help="where the nodes' logs go (default: a temp folder)")
     parser.add_argument('--latencies', metavar='CSV',
                         help='also write every decided pair: rate, index, decision latency [ms], '
@@ -591,6 +639,8 @@ def main() -> None:
         params += f', roi.decision_wait_s {args.decision_wait_s:g}'
     if args.no_scene_change_detection:
         params += ', roi.detect_scene_change false'
+    if args.max_undecided_matches is not None:
+        params += f', max_undecided_matches {args.max_undecided_matches}'
     print_tables(results, params, machine)
     if args.latencies:
         with open(args.latencies, 'w', encoding='utf-8') as output:

@@ -198,3 +198,74 @@ def test_a_workspace_out_of_view_drops_the_pair_with_the_reason(harness):
     rig.publish_and_wait_processed(stereo_pair())
     assert rig.node.dropped['calibration'] == 1
     assert 'workspace box' in rig.node.last_error
+
+
+def _decision_publisher(h):
+    from stereo_fuzzy_perception.nodes import qos, topic_names
+
+    from stereo_fuzzy_msgs.msg import FuzzyDecision
+
+    publisher = h.probe.create_publisher(FuzzyDecision, topic_names.DECISION, qos.RESULTS)
+    wait_until(lambda: h.node.decision_subscription.get_publisher_count() > 0, TIMEOUT,
+               'the node to see the decision publisher', h.executor)
+    return publisher
+
+
+def test_next_pair_waits_for_the_decision_of_undecided_matches(harness):
+    from stereo_fuzzy_msgs.msg import FuzzyDecision
+
+    h = harness(max_undecided_matches=1, undecided_timeout_s=10.0)
+    decisions = _decision_publisher(h)
+    h.publish_and_wait_processed(stereo_pair(stamp_sec=1))
+    h.publisher.publish(stereo_pair(stamp_sec=2))
+    wait_until(lambda: h.node.waiting_for_decisions, TIMEOUT,
+               'the worker to hold pair 2 until the decision of pair 1', h.executor)
+    assert h.node.processed == 1 and len(h.node.undecided) == 1
+    h.publisher.publish(stereo_pair(stamp_sec=3))  # replaces the held pair: the newest wins
+    wait_until(lambda: h.node.received == 3, TIMEOUT, 'pair 3 to arrive', h.executor)
+    decision = FuzzyDecision()
+    decision.header.stamp.sec = 1
+    decisions.publish(decision)
+    wait_until(lambda: h.node.processed == 2, TIMEOUT, 'the held pair to be matched',
+               h.executor)
+    wait_until(lambda: len(h.matches) == 2, TIMEOUT, 'its matches', h.executor)
+    assert [message.header.stamp.sec for message in h.matches] == [1, 3]
+    assert h.node.dropped['superseded'] == 1
+    assert h.node.held_for_decisions == 1
+    wait_until(lambda: h.diagnostics and h.latest_values().get(
+        'pairs held while max_undecided_matches were undecided') == '1', TIMEOUT,
+        'the held pair on /diagnostics', h.executor)
+
+
+def test_a_decision_that_never_comes_stops_counting_after_the_timeout(harness):
+    h = harness(max_undecided_matches=1, undecided_timeout_s=0.05)
+    _decision_publisher(h)  # present, but it never decides
+    for stamp in (1, 2, 3):
+        h.publish_and_wait_processed(stereo_pair(stamp_sec=stamp))
+    assert h.node.processed == 3
+    assert h.node.undecided.expired >= 2
+    wait_until(lambda: h.diagnostics and int(h.latest_values().get(
+        'undecided matches expired (no decision within undecided_timeout_s)', 0)) >= 2,
+        TIMEOUT, 'the expired matches on /diagnostics', h.executor)
+
+
+def test_pair_timing_is_sent_only_to_a_subscriber(harness):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from stereo_fuzzy_perception.nodes import qos
+
+    h = harness()
+    h.publish_and_wait_processed(stereo_pair(stamp_sec=1))
+    assert h.node.pair_timing.start(0) is None  # nobody listens: nothing measured or sent
+    timings: list = []
+    h.probe.create_subscription(DiagnosticArray, 'matches/timing',
+                                timings.append, qos.RESULTS)
+    wait_until(lambda: h.node.pair_timing.publisher.get_subscription_count() > 0, TIMEOUT,
+               'the node to see the timing subscriber', h.executor)
+    h.publish_and_wait_processed(stereo_pair(stamp_sec=2))
+    wait_until(lambda: timings, TIMEOUT, 'the timing of pair 2', h.executor)
+    assert timings[0].header.stamp.sec == 2
+    values = {item.key: item.value for item in timings[0].status[0].values}
+    events = [int(values[f'{event} [ns]']) for event in ('in', 'start', 'matches out', 'out')]
+    assert events == sorted(events), values
+    assert float(values['match [ms]']) > 0.0 and float(values['cpu [ms]']) > 0.0
+    assert values['matched'].startswith('whole'), values

@@ -42,6 +42,7 @@ from stereo_fuzzy_perception.core.matching.disparity_range import DisparityRange
 from stereo_fuzzy_perception.core.matching.rectification import RectificationError
 from stereo_fuzzy_perception.core.matching.scene_change import block_means
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
+from stereo_fuzzy_perception.core.matching.undecided_matches import UndecidedMatches
 from stereo_fuzzy_perception.core.matching.window_matcher import MatcherInputError, warm_up
 from stereo_fuzzy_perception.core.sequence_gaps import SequenceGaps
 from stereo_fuzzy_perception.nodes import qos, topic_names
@@ -55,10 +56,12 @@ from stereo_fuzzy_perception.nodes.conversions import (
     check_pair_size,
     disparity_image_message,
     matched_points_to_cloud,
+    stamp_to_ns,
     stereo_matches_message,
     stereo_pair_to_domain,
 )
 from stereo_fuzzy_perception.nodes.correlation_parameters import CorrelationSettings
+from stereo_fuzzy_perception.nodes.pair_timing import PairTimingPublisher
 
 DROP_REASONS = ('superseded', 'image_too_large', 'calibration', 'size_mismatch', 'encoding',
                 'matcher_input', 'opencv', 'internal')
@@ -107,12 +110,18 @@ class CorrelationNode(Node):
         self.diagnostics_publisher = self.create_publisher(
             DiagnosticArray, topic_names.DIAGNOSTICS, qos.DIAGNOSTICS)
         self._input_qos = input_qos
+        # Per-pair timing, only while someone subscribes (a benchmark).
+        self.pair_timing = PairTimingPublisher(self, topic_names.MATCHES_TIMING)
 
         self._condition = threading.Condition()
-        self._pending: deque[StereoPair] = deque()
+        self._pending: deque[tuple[StereoPair, int]] = deque()  # and its arrival [ns]
         self._stopping = False
         self.received = 0
         self.processed = 0
+        # Matches without a decision yet; the next pair waits while max_undecided_matches are.
+        self.undecided = UndecidedMatches()
+        self.held_for_decisions = 0
+        self.waiting_for_decisions = False  # the worker holds a pair until a decision comes
         self.pair_sequence = SequenceGaps()
         self.dropped: Counter[str] = Counter({reason: 0 for reason in DROP_REASONS})
         self.last_error = ''
@@ -124,7 +133,8 @@ class CorrelationNode(Node):
         self._worker = threading.Thread(target=self._work, name='correlation_worker',
                                         daemon=True)
         self._worker.start()
-        self.create_subscription(FuzzyDecision, DECISION_TOPIC, self._on_decision, qos.RESULTS)
+        self.decision_subscription = self.create_subscription(
+            FuzzyDecision, DECISION_TOPIC, self._on_decision, qos.RESULTS)
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(
             f'correlation_node started: {self.pipeline.config.method}, window '
@@ -147,6 +157,7 @@ class CorrelationNode(Node):
         self.get_logger().info(f'matcher settings now {self.pipeline.config}')
 
     def _on_pair(self, pair: StereoPair) -> None:
+        arrived_ns = time.time_ns()
         with self._condition:
             self.received += 1
             self.pair_sequence.observe(int(pair.sequence))
@@ -157,11 +168,14 @@ class CorrelationNode(Node):
                     'dropped a pair that waited while the previous one was matched '
                     f"({self.dropped['superseded']} so far): input faster than matching",
                     throttle_duration_sec=5.0)
-            self._pending.append(pair)
+            self._pending.append((pair, arrived_ns))
             self._condition.notify()
 
     def _on_decision(self, msg: FuzzyDecision) -> None:
         """Track the decision's correlation area (or search everywhere when it found none)."""
+        with self._condition:
+            self.undecided.decided(stamp_to_ns(msg.header.stamp))
+            self._condition.notify_all()  # the worker may wait for this decision
         try:
             area = decision_to_tracked_area(msg)
             known = self._pose
@@ -232,15 +246,29 @@ class CorrelationNode(Node):
                     if remaining <= 0.0:
                         break
                     self._condition.wait(remaining)
+                held = False
+                while not self._stopping and (wait := self._undecided_wait()) > 0.0:
+                    held = self.waiting_for_decisions = True  # newer pairs replace this one
+                    self._condition.wait(wait)
+                self.waiting_for_decisions = False
+                self.held_for_decisions += int(held)
                 if self._stopping:
                     return
-                pair = self._pending.popleft() if self._pending else None
-            if pair is None:
+                pending = self._pending.popleft() if self._pending else None
+            if pending is None:
                 continue
             last_start = time.monotonic()
-            self._process(pair)
+            self._process(*pending)
 
-    def _process(self, pair: StereoPair) -> None:
+    def _undecided_wait(self) -> float:
+        """Return how long the next pair must wait for decisions [s] (0: match it now)."""
+        settings = self.settings
+        limit = (settings.max_undecided_matches
+                 if self.decision_subscription.get_publisher_count() > 0 else 0)
+        return self.undecided.wait_s(time.monotonic(), limit, settings.undecided_timeout_s)
+
+    def _process(self, pair: StereoPair, arrived_ns: int = 0) -> None:
+        timer = self.pair_timing.start(arrived_ns)
         try:
             check_pair_size(pair, self.settings.max_image_pixels)
             left, right, calibration = stereo_pair_to_domain(pair)
@@ -250,13 +278,20 @@ class CorrelationNode(Node):
                 raise RectificationError(
                     f'left image is {left.shape[1]}x{left.shape[0]} but right image is '
                     f'{right.shape[1]}x{right.shape[0]}')
+            if timer is not None:
+                timer.step('decode')
             plan = self._plan(pair, left, calibration)
+            if timer is not None:
+                timer.step('plan')
             # A disparity subscriber gets every row; otherwise only the rows that
             # point_stride publishes are matched.
             result = self.pipeline.process(
                 left, right, calibration,
                 full_disparity=self.disparity_publisher.get_subscription_count() > 0,
                 region=plan.region)
+            if timer is not None:
+                timer.step('pipeline')
+                timer.steps(result.timings_ms)
             stamp_s = stamp_seconds(pair.header.stamp)
             if result.region_problem:
                 self.tracker.region_failed(result.region_problem, stamp_s)
@@ -264,6 +299,8 @@ class CorrelationNode(Node):
                 result.disparity_map, stamp_s, result.rectified, self.pipeline.point_stride,
                 (result.disparity_map.config.min_disparity,
                  result.disparity_map.config.disparity_range)) is not None
+            if timer is not None:
+                timer.step('regions from matches')
         except ImageSizeError as error:
             self._drop('image_too_large', str(error))
             return
@@ -292,7 +329,14 @@ class CorrelationNode(Node):
                 header, result.rectified, result.points, result.disparity_map.config)
             matches.sequence = self.processed + 1
             matches.pair_sequence = pair.sequence
+            if timer is not None:
+                timer.step('pack')
+            with self._condition:  # before publishing: its decision may come back at once
+                self.undecided.published(stamp_to_ns(header.stamp), time.monotonic())
             self.matches_publisher.publish(matches)
+            if timer is not None:
+                timer.step('publish matches')
+                timer.event('matches out')
             if self.points_publisher.get_subscription_count() > 0:
                 self.points_publisher.publish(matched_points_to_cloud(result.points, header))
             if self.disparity_publisher.get_subscription_count() > 0:
@@ -304,6 +348,11 @@ class CorrelationNode(Node):
             self._drop('internal', f'{error!r}\n{traceback.format_exc()}')
             return
         timings = dict(result.timings_ms, publish=1e3 * (time.perf_counter() - start))
+        if timer is not None:
+            timer.note('matched', 'area' if result.region is not None
+                       else f'whole: {result.region_problem or plan.reason}')
+            timer.note('points', str(len(result.points)))
+            self.pair_timing.publish(timer, pair.header.stamp)
         with self._condition:
             self.searched[result.region_problem or plan.reason or 'area'] += 1
             if plan.periodic_skipped and result.region is not None:
@@ -370,6 +419,11 @@ class CorrelationNode(Node):
                     self.searched[FROM_MATCHES],
                 **{f'decisions waited for after a failed region: {outcome}': count
                    for outcome, count in self.decision_waits.items()},
+                'pairs held while max_undecided_matches were undecided':
+                    self.held_for_decisions,
+                'undecided matches': len(self.undecided),
+                'undecided matches expired (no decision within undecided_timeout_s)':
+                    self.undecided.expired,
                 **self.pair_sequence.report(topic_names.PAIR),
                 **{f'dropped {reason}': count for reason, count in self.dropped.items()},
                 'last valid points': self.last_points,

@@ -147,6 +147,14 @@ class CorrelationSettings:
     input_queue_depth: int = parameter(
         1, 'Pairs waiting while one is matched; when full the oldest is dropped. 1 = the newest '
         'pair always wins (bounded latency); more tolerates bursts in replays', 1, 30)
+    max_undecided_matches: int = parameter(
+        3, 'Most matches published and not yet answered by a decision (best_point/decision) '
+        'before the next pair is matched; meanwhile newer pairs replace the waiting one, so '
+        'latency stays bounded when deciding is slower than matching. 0 = never wait (also '
+        'while nobody publishes decisions)', 0, 100)
+    undecided_timeout_s: float = parameter(
+        0.5, 'A match without a decision after this long no longer counts as undecided (a lost '
+        'decision never stalls matching) [s]', 0.01, 10.0)
     max_image_pixels: int = parameter(
         4096 * 3072, 'Largest image accepted [px, width x height]; larger pairs are dropped as '
         'image_too_large before they are decoded', 1, 32767 * 32767)

@@ -82,6 +82,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     tf_message_to_transforms,
 )
 from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import FuzzyBestPointSettings
+from stereo_fuzzy_perception.nodes.pair_timing import PairTimer, PairTimingPublisher
 from tf2_msgs.msg import TFMessage
 
 MALFORMED_INPUT = 'malformed_input'
@@ -211,6 +212,8 @@ class FuzzyBestPointNode(Node):
                                                        qos.RESULTS)
         self.diagnostics_publisher = self.create_publisher(
             DiagnosticArray, topic_names.DIAGNOSTICS, qos.DIAGNOSTICS)
+        # Per-pair timing, only while someone subscribes (a benchmark).
+        self.pair_timing = PairTimingPublisher(self, topic_names.DECISION_TIMING)
         self.matches_subscription = self.create_subscription(
             StereoMatches, topic_names.MATCHES, self._on_matches, qos.RESULTS)
         self.create_subscription(TFMessage, topic_names.TF_STATIC, self._on_tf_static,
@@ -234,6 +237,7 @@ class FuzzyBestPointNode(Node):
         self.get_logger().info(f'now choosing with {self._describe()}')
 
     def _on_matches(self, msg: StereoMatches) -> None:
+        timer = self.pair_timing.start(time.time_ns())
         header = Header(stamp=msg.header.stamp, frame_id=self.settings.world.world_frame)
         with self._lock:
             chooser = self._chooser
@@ -253,12 +257,12 @@ class FuzzyBestPointNode(Node):
                 throttle_duration_sec=ERROR_THROTTLE_S)
             decision = BestPointDecision(chooser.selector, status=MALFORMED_INPUT,
                                          reason=str(error))
-            self._publish(decision, header, msg.header.frame_id)
+            self._publish(decision, header, msg.header.frame_id, timer)
             return
         mismatch = self._baseline_mismatch(StereoCalibration(left, right))
         if mismatch:
             self._publish(BestPointDecision(chooser.selector, status=RIG_MISMATCH,
-                                            reason=mismatch), header, msg.header.frame_id)
+                                            reason=mismatch), header, msg.header.frame_id, timer)
             return
         try:
             chooser = dataclasses.replace(chooser, world_from_camera=self._world_from_camera(
@@ -267,8 +271,11 @@ class FuzzyBestPointNode(Node):
             self.get_logger().error(f'camera pose: {error}',
                                     throttle_duration_sec=ERROR_THROTTLE_S)
             self._publish(BestPointDecision(chooser.selector, status=RIG_MISMATCH,
-                                            reason=str(error)), header, msg.header.frame_id)
+                                            reason=str(error)), header, msg.header.frame_id,
+                          timer)
             return
+        if timer is not None:
+            timer.step('decode')
         try:
             decision = chooser.decide(points, left, right)
         except Exception as error:  # no input may stop the node; say what happened instead
@@ -283,7 +290,9 @@ class FuzzyBestPointNode(Node):
                 'pose of the rig.* parameters: if they do not describe this rig, give its pose '
                 'file (rig_pose_file, written by rig_calibration) or publish it on /tf_static',
                 throttle_duration_sec=HINT_THROTTLE_S)
-        self._publish(decision, header, msg.header.frame_id)
+        if timer is not None:
+            timer.step('decide')
+        self._publish(decision, header, msg.header.frame_id, timer)
 
     def _baseline_mismatch(self, calibration: StereoCalibration) -> str:
         """Return why every decision is refused (rig.baseline_m vs calibration), or ''.
@@ -329,7 +338,8 @@ class FuzzyBestPointNode(Node):
                                    f'{source.origin}')
         return source.world_from_camera(calibration, camera_frame)
 
-    def _publish(self, decision: BestPointDecision, header: Header, camera_frame: str) -> None:
+    def _publish(self, decision: BestPointDecision, header: Header, camera_frame: str,
+                 timer: PairTimer | None = None) -> None:
         self.decisions[decision.status] += 1
         self._last_status = decision.status_text()
         if decision.has_best_point:
@@ -343,6 +353,11 @@ class FuzzyBestPointNode(Node):
         self.decision_publisher.publish(decision_to_message(decision, header, camera_frame))
         if self.markers_publisher.get_subscription_count() > 0:
             self.markers_publisher.publish(decision_to_markers(decision, header))
+        if timer is not None:
+            timer.step('publish')
+            timer.note('status', decision.status)
+            timer.note('points', str(decision.points_in))
+            self.pair_timing.publish(timer, header.stamp)
 
     def _publish_diagnostics(self) -> None:
         made = self.decisions[STATUS_OK]

@@ -40,6 +40,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     image_size_problem,
     stamp_to_ns,
 )
+from stereo_fuzzy_perception.nodes.pair_timing import PairTimingPublisher
 from stereo_fuzzy_perception.nodes.stereo_sync_parameters import StereoSyncSettings
 
 # The four synchronised input streams, in StampSynchronizer stream order.
@@ -198,6 +199,8 @@ class StereoSyncNode(Node):
         self.pair_publisher = self.create_publisher(StereoPair, topic_names.PAIR, qos.RESULTS)
         self.diagnostics_publisher = self.create_publisher(
             DiagnosticArray, topic_names.DIAGNOSTICS, qos.DIAGNOSTICS)
+        # Per-pair timing, only while someone subscribes (a benchmark).
+        self.pair_timing = PairTimingPublisher(self, topic_names.PAIR_TIMING)
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics)
         self._start_topics()
 
@@ -230,6 +233,7 @@ class StereoSyncNode(Node):
             f'queue {self.settings.queue_size}, {self.settings.input_reliability})')
 
     def _on_input(self, stream: int, msg: Image | CameraInfo) -> None:
+        arrived_ns = time.time_ns()
         stamp_ns = stamp_to_ns(msg.header.stamp)
         if self.statistics.count_received(INPUT_TOPICS[stream], stamp_ns):
             self.get_logger().warning(
@@ -241,7 +245,7 @@ class StereoSyncNode(Node):
             self._on_evicted(evicted)
         if result.matched is not None:
             left_image, left_info, right_image, right_info = result.matched.items
-            self._publish_pair(left_image, left_info, right_image, right_info)
+            self._publish_pair(left_image, left_info, right_image, right_info, arrived_ns)
 
     def _on_message_lost(self, topic: str, info: QoSMessageLostInfo) -> None:
         self.statistics.count_lost(topic, int(info.total_count_change))
@@ -269,7 +273,8 @@ class StereoSyncNode(Node):
     # --- checks and output ---------------------------------------------------------------
 
     def _publish_pair(self, left_image: Image, left_info: CameraInfo, right_image: Image,
-                      right_info: CameraInfo) -> None:
+                      right_info: CameraInfo, arrived_ns: int = 0) -> None:
+        timer = self.pair_timing.start(arrived_ns)
         self.statistics.count_in()
         problem = pair_problem(left_image, left_info, right_image, right_info,
                                self.settings.max_image_pixels)
@@ -284,6 +289,7 @@ class StereoSyncNode(Node):
             sequence=self.statistics.next_sequence())
         self.pair_publisher.publish(pair)
         self.statistics.count_out()
+        self.pair_timing.publish(timer, pair.header.stamp)
 
     def _drop(self, reason: str, detail: str) -> None:
         self.statistics.count_drop(reason)

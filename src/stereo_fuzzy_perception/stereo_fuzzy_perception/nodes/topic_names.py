@@ -34,6 +34,11 @@ BEST_POINT = 'best_point'
 DECISION = 'best_point/decision'
 MARKERS = 'best_point/markers'
 
+# Per-pair timing of each node, next to its output, sent only while subscribed (pair_timing.py)
+PAIR_TIMING = 'pair/timing'
+MATCHES_TIMING = 'matches/timing'
+DECISION_TIMING = 'best_point/timing'
+
 DIAGNOSTICS = '/diagnostics'
 TF_STATIC = '/tf_static'
 
