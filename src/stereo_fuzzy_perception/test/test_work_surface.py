@@ -63,6 +63,19 @@ def test_the_same_points_give_the_same_plane():
     assert again.offset_m == pytest.approx(first.offset_m, abs=1e-4)
 
 
+def test_points_on_one_line_do_not_fix_a_plane():
+    # A peer's message can hold anything: a single image row of the table, or that row with
+    # a second one a hair beside it. A line does not fix a plane: the rig pose's is assumed,
+    # without an error.
+    x = np.linspace(0.0, 0.4, 2000)
+    for width in (0.0, 1e-9):
+        y = 0.1 + width * (np.arange(len(x)) % 2)
+        world = np.vstack([x, y, 0.001 + 0.005 * x])
+        plane = fit_work_surface(world, np.full(len(x), 0.003), 0.02, 0.01, 0.2)
+        assert plane.source == SURFACE_ASSUMED
+        assert np.all(np.isfinite(plane.heights(world)))
+
+
 def test_too_few_surface_points_assume_the_rig_pose_plane():
     rng = np.random.default_rng(2)
     world, scale = surface_points(rng, (0.0, 0.0, 0.05), 500, 0.1, 0.003)  # all 5 cm up

@@ -293,9 +293,11 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
     sorted_scores = z_scores[members][order]
     bounds = np.concatenate([[0], np.cumsum(sizes[1:])])
     medians = np.full(count + 1, math.nan)
-    for label in range(1, count + 1):
-        if sizes[label]:
-            medians[label] = float(np.median(sorted_scores[bounds[label - 1]:bounds[label]]))
+    # Only the regions that can pass, and the largest (the refusal names it): table noise
+    # comes in many small blobs.
+    largest = int(np.argmax(sizes))
+    for label in {largest, *np.flatnonzero(sizes >= max(min_points, 1)).tolist()} - {0}:
+        medians[label] = float(np.median(sorted_scores[bounds[label - 1]:bounds[label]]))
     high = medians >= object_sigmas
     passed = high.copy()
     if square_points > 0.0 and area_top_sigmas > 0.0:
@@ -311,7 +313,6 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
         if top >= least * float(np.median(sigmas[region])):
             objects.append((int(sizes[label]), label, top))
     if not objects:
-        largest = int(np.argmax(sizes))
         return ObjectRegion(0, count, 0, float(medians[largest]), int(sizes[largest]))
     size, chosen, top = max(objects)
     return ObjectRegion(chosen, count, len(objects), float(medians[chosen]), size, top)

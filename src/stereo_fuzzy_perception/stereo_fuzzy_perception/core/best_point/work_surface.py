@@ -43,7 +43,6 @@ the plane that fits the surface alone."""
 
 SEARCH_QUANTILE_SIGMAS = 0.385
 """That quantile of |N(0, 1)|, in standard deviations."""
-"""Candidates (evenly spread) on which the hypotheses are scored."""
 
 INLIER_SIGMAS = 3.0
 """Refinement keeps candidates within this many sigmas of the plane."""
@@ -130,11 +129,22 @@ def _planes_through(points: np.ndarray) -> np.ndarray:
 
 
 def _weighted_fit(world: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """Return (slope_x, slope_y, offset) by least squares on z, residuals divided by scale."""
-    weight = 1.0 / scale
-    design = np.column_stack([world[0], world[1], np.ones(world.shape[1])]) * weight[:, None]
-    solution: np.ndarray = np.linalg.lstsq(design, world[2] * weight, rcond=None)[0]
-    return solution
+    """Return (slope_x, slope_y, offset) by least squares on z, residuals divided by scale.
+
+    By the normal equations, centred on the points' weighted mean so that they stay well
+    conditioned: three unknowns over thousands of points, where an SVD of the whole design
+    matrix costs ten times as much for the same plane. Points on one line (a peer's message
+    can hold anything) give the least-norm slopes instead of an error.
+    """
+    weight = 1.0 / scale ** 2
+    total = float(np.sum(weight))
+    mean = (world @ weight) / total
+    centred = world - mean[:, None]
+    x, y, z = centred[0], centred[1], centred[2]
+    wx, wy = weight * x, weight * y
+    normal = np.array([[wx @ x, wx @ y], [wx @ y, wy @ y]])
+    slopes = np.linalg.lstsq(normal, np.array([wx @ z, wy @ z]), rcond=None)[0]
+    return np.array([slopes[0], slopes[1], mean[2] - slopes[0] * mean[0] - slopes[1] * mean[1]])
 
 
 def fit_work_surface(world: np.ndarray, per_disparity: np.ndarray, search_m: float,
