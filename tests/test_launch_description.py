@@ -226,3 +226,21 @@ def test_unknown_set_and_argument_are_refused():
         description.process_set('everything')
     with pytest.raises(ChainDescriptionError, match='no argument'):
         description.process_set('chain').argument_values({'prot': '/dev/ttyUSB0'})
+
+
+def test_every_node_gets_the_packages_dds_profile_unless_the_user_has_one(monkeypatch):
+    from stereo_fuzzy_perception.bringup.chain_description import (
+        DDS_PROFILES_FILE,
+        DDS_PROFILES_VARIABLE,
+    )
+
+    profile = REPO_ROOT / 'src' / 'stereo_fuzzy_perception' / 'config' / DDS_PROFILES_FILE
+    assert profile.is_file()
+    for launch_file in LAUNCH_FILES:
+        monkeypatch.delenv(DDS_PROFILES_VARIABLE, raising=False)
+        _, nodes = launched_nodes(launch_file, monkeypatch, {})
+        assert nodes and all(node['additional_env'] == {DDS_PROFILES_VARIABLE: str(profile)}
+                             for node in nodes), launch_file.name
+        monkeypatch.setenv(DDS_PROFILES_VARIABLE, '/my/own/profile.xml')
+        _, nodes = launched_nodes(launch_file, monkeypatch, {})
+        assert all(node['additional_env'] == {} for node in nodes), launch_file.name

@@ -11,7 +11,7 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/config', glob('config/*.yaml') + glob('config/*.xml')),
         # launch files and the process description they (and chain/processes.py) read
         ('share/' + package_name + '/launch',
          glob('launch/*.launch.py') + glob('launch/*.yaml')),

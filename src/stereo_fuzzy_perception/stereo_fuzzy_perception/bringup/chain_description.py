@@ -8,6 +8,7 @@ cannot start different executables, parameters files or remappings.
 from __future__ import annotations
 
 import hashlib
+import os
 import re
 import tempfile
 from collections.abc import Callable, Mapping
@@ -18,6 +19,11 @@ from typing import Any
 import yaml
 
 DESCRIPTION_FILE = 'chain_processes.yaml'
+DDS_PROFILES_VARIABLE = 'FASTRTPS_DEFAULT_PROFILES_FILE'
+DDS_PROFILES_FILE = 'fastdds_large_messages.xml'
+"""The package's Fast DDS profile (config/): a shared-memory segment that holds the chain's
+large messages. Given to every node the launch files start unless the variable is set (then
+the user's own profile wins); scripts/env.sh does the same for every other way of starting."""
 # "$(name)": the value of the argument called name.
 _ARGUMENT = re.compile(r'\$\((?P<name>\w+)\)')
 ParameterValue = str | int | float | bool | list[Any]
@@ -328,6 +334,10 @@ def launch_description(set_name: str, description_file: Path) -> Any:
     from launch_ros.actions import Node
 
     process_set = load_description(description_file).process_set(set_name)
+    profiles = Path(get_package_share_directory('stereo_fuzzy_perception')) / 'config' / (
+        DDS_PROFILES_FILE)
+    environment = ({} if os.environ.get(DDS_PROFILES_VARIABLE)
+                   else {DDS_PROFILES_VARIABLE: str(profiles)})
 
     def nodes(context: Any) -> list[Any]:
         values = {argument.name: LaunchConfiguration(argument.name).perform(context)
@@ -344,7 +354,7 @@ def launch_description(set_name: str, description_file: Path) -> Any:
                                 namespace=process.resolved_namespace(values) or None,
                                 parameters=parameters,
                                 remappings=process.resolved_remappings(values),
-                                output='screen'))
+                                additional_env=environment, output='screen'))
         return started
 
     return LaunchDescription([
