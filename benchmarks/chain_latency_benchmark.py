@@ -631,6 +631,10 @@ def main() -> None:
     results = run(args)
     machine = (f'{os.cpu_count()} CPUs, 1-min load average {load_before:.1f} before, '
                f'{os.getloadavg()[0]:.1f} after')
+    # The transports decide what a large message's hop costs (README, "Large messages over DDS")
+    profiles = os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE')
+    machine += (f'; Fast DDS profile {Path(profiles).name}' if profiles
+                else "; Fast DDS's default transports")
     params = (f'parameters {DEMO_PARAMS.relative_to(REPO_ROOT)}' if DEMO_PARAMS.exists()
               else 'node defaults + correlation_node min_disparity 32, disparity_range 64')
     params += (f', {args.pairs_per_scene} pairs per scene, tracking '
