@@ -101,7 +101,9 @@ def test_a_disc_5_mm_high_at_0_8_m_is_always_found(diameter_m, noise_px, stride,
         f'expected the disc ({1000 * diameter_m:.0f} mm, noise {noise_px:.2f} px, stride '
         f'{stride}, seed {seed}) found: {area.reason}')
     assert area.top_height == pytest.approx(0.005, abs=0.0015)
-    assert centre_error_m(area, disc) < 0.005
+    # A face one or two sigmas of a point's noise above the table: its centre scatters by a few
+    # millimetres; a bias of a centimetre does not pass.
+    assert centre_error_m(area, disc) < 0.006
 
 
 @pytest.mark.parametrize('seed', [0, 3])
