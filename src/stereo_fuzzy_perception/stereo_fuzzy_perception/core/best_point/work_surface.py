@@ -132,9 +132,9 @@ def _weighted_fit(world: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """Return (slope_x, slope_y, offset) by least squares on z, residuals divided by scale.
 
     By the normal equations, centred on the points' weighted mean so that they stay well
-    conditioned: three unknowns over thousands of points, where an SVD of the whole design
-    matrix costs ten times as much for the same plane. Points on one line (a peer's message
-    can hold anything) give the least-norm slopes instead of an error.
+    conditioned: three unknowns over thousands of points need a 2x2 solve, not an SVD of the
+    whole design matrix. Points on one line (a peer's message can hold anything) give the
+    least-norm slopes instead of an error.
     """
     weight = 1.0 / scale ** 2
     total = float(np.sum(weight))
