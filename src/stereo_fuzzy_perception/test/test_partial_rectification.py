@@ -156,9 +156,10 @@ def test_the_raw_box_holds_every_raw_pixel_a_rectified_roi_reads(x, y, width, he
     rectifier = StereoRectifier()
     box = rectifier.raw_box(calibration, (x, y, width, height))
     maps = rectification_maps(calibration.left)
-    assert maps.map_x is not None
+    assert maps.map_x is not None and maps.map_y is not None
     x1, y1 = min(calibration.left.width, x + width), min(calibration.left.height, y + height)
-    read = maps.map_x[y:y1, x:x1].reshape(-1, 2).astype(int)  # integer parts of (x, y)
+    read = np.floor(np.column_stack([maps.map_x[y:y1, x:x1].ravel(),
+                                     maps.map_y[y:y1, x:x1].ravel()])).astype(int)
     inside = ((read[:, 0] >= 0) & (read[:, 1] >= 0) & (read[:, 0] < calibration.left.width)
               & (read[:, 1] < calibration.left.height))
     read = read[inside]

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 MAX_IMAGE_SIDE = 32767
-"""Largest image side [px]: OpenCV's fixed-point remap maps hold coordinates as int16."""
+"""Largest image side [px]: cv2.remap works on map coordinates as int16 (its fixed-point path)."""
 ROTATION_TOLERANCE = 0.01
 """Largest |(R R^T - I)_ij| accepted for a rectification rotation (files round R)."""
 DISTORTION_LENGTHS: dict[str, tuple[int, ...]] = {

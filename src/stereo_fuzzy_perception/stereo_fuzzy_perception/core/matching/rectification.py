@@ -68,7 +68,11 @@ Block = tuple[int, int, int, int]
 
 @dataclass(frozen=True)
 class RectificationMaps:
-    """cv2.remap maps of one camera (None when the image is already rectified)."""
+    """cv2.remap maps of one camera (None when the image is already rectified).
+
+    map_x and map_y are (H, W) float32: for each rectified pixel, where it lies in the raw image
+    [px].
+    """
 
     map_x: np.ndarray | None
     map_y: np.ndarray | None
@@ -134,7 +138,12 @@ def grown_block(done: Block | None, wanted: Block) -> Block:
 
 
 def rectification_maps(camera: CameraCalibration) -> RectificationMaps:
-    """Compute the remap maps of one camera from K, D, R, P (fixed-point maps, fast remap).
+    """Compute the remap maps of one camera from K, D, R, P.
+
+    Float maps, not OpenCV's fixed-point ones: with float maps cv2.remap hands the bilinear
+    interpolation to Intel IPP (OpenCV's wheels ship it), which is faster here
+    (benchmarks/correlation_benchmark.py, the stage's rectify part), and interpolates at the
+    map's exact coordinates instead of 1/32 px.
 
     Raises:
         CalibrationError: When the calibration is unusable.
@@ -150,9 +159,9 @@ def rectification_maps(camera: CameraCalibration) -> RectificationMaps:
     R = np.asarray(camera.R, dtype=np.float64)
     P = np.asarray(camera.P, dtype=np.float64)
     if camera.distortion_model == 'equidistant':
-        map_x, map_y = cv2.fisheye.initUndistortRectifyMap(K, D[:4], R, P, size, cv2.CV_16SC2)
+        map_x, map_y = cv2.fisheye.initUndistortRectifyMap(K, D[:4], R, P, size, cv2.CV_32FC1)
     else:
-        map_x, map_y = cv2.initUndistortRectifyMap(K, D, R, P, size, cv2.CV_16SC2)
+        map_x, map_y = cv2.initUndistortRectifyMap(K, D, R, P, size, cv2.CV_32FC1)
     return RectificationMaps(map_x, map_y)
 
 
@@ -203,11 +212,14 @@ class StereoRectifier:
         x, y, roi_width, roi_height = roi
         x0, y0 = max(0, x), max(0, y)
         x1, y1 = min(width, x + roi_width), min(height, y + roi_height)
-        if left_maps.map_x is None or x1 <= x0 or y1 <= y0:
+        if left_maps.map_x is None or left_maps.map_y is None or x1 <= x0 or y1 <= y0:
             return x0, y0, x1, y1
-        block = left_maps.map_x[y0:y1, x0:x1]  # integer parts of (x, y)
-        raw = np.concatenate([block[0], block[-1], block[:, 0], block[:, -1]]).astype(np.int32)
-        low, high = raw.min(axis=0), raw.max(axis=0)
+        low, high = [], []
+        for axis_map in (left_maps.map_x, left_maps.map_y):
+            block = axis_map[y0:y1, x0:x1]
+            border = np.floor(np.concatenate([block[0], block[-1], block[:, 0], block[:, -1]]))
+            low.append(border.min())
+            high.append(border.max())
         return (max(0, int(low[0])), max(0, int(low[1])),
                 min(width, int(high[0]) + 2), min(height, int(high[1]) + 2))
 
