@@ -19,7 +19,11 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     find_correlation_area,
 )
 from stereo_fuzzy_perception.core.best_point.four_areas import split_into_areas
-from stereo_fuzzy_perception.core.best_point.object_segmentation import across_m, hull_fill
+from stereo_fuzzy_perception.core.best_point.object_segmentation import (
+    across_m,
+    hull_fill,
+    width_m,
+)
 from stereo_fuzzy_perception.core.best_point.work_surface import SURFACE_MEASURED
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
@@ -304,12 +308,73 @@ def test_a_zero_max_object_across_is_refused():
 
 
 def test_a_top_higher_than_any_object_is_refused():
-    # A face 150 mm up: no object stands that high (a blob of mismatches floats there).
+    # A face 150 mm up: no object stands that high (a blob of mismatches floats there). Its
+    # matches are left out, and nothing else stands out of the surface.
     tower = Box((0.2, 0.15), 0.04, 0.15)
+    area = area_in(RIG, tower, 0.1, 3)
+    assert area.status == NO_OBJECT, f'expected the face refused, got {area.status}'
+    allowed = area_in(RIG, tower, 0.1, 3, config=AreaConfig(max_object_height_m=0.2))
+    assert allowed.status == STATUS_OK, allowed.reason
+    assert allowed.top_height == pytest.approx(0.15, abs=0.002)
+
+
+def test_a_top_just_above_the_highest_object_is_refused_by_name():
+    # Within its noise of max_object_height_m the face is kept, and refused as too high.
+    tower = Box((0.2, 0.15), 0.04, 0.1005)
     area = area_in(RIG, tower, 0.1, 3)
     assert area.status == NO_OBJECT, f'expected the face refused, got {area.status}'
     assert 'higher than any object' in area.reason
     assert 'max_object_height_m=0.1' in area.reason
-    allowed = area_in(RIG, tower, 0.1, 3, config=AreaConfig(max_object_height_m=0.2))
-    assert allowed.status == STATUS_OK, allowed.reason
-    assert allowed.top_height == pytest.approx(0.15, abs=0.002)
+
+
+def lifted_along_rays(points: MatchedPoints, chosen: np.ndarray, heights: np.ndarray
+                      ) -> None:
+    """Move the chosen matches of the table (z = 0) nearer along their rays, to `heights`."""
+    camera_z = WORLD_FROM_LEFT[2, 3]
+    nearer = (camera_z - heights) / camera_z  # the ray's length shrinks with the depth
+    disparity = points.u_left[chosen] - points.u_right[chosen]
+    points.xyz[chosen] *= nearer[:, np.newaxis]
+    points.u_right[chosen] = points.u_left[chosen] - disparity / nearer
+
+
+@pytest.mark.parametrize('stride', [1, 3])
+def test_matches_higher_than_any_object_are_left_out(stride):
+    # A sheet of mismatches floating 150-190 mm over a patch of table larger than the box (a
+    # periodic table matched a period off) would be the largest region; no object is that
+    # high, so it takes no part and the box is found.
+    box = Box((0.2, 0.15), 0.04, 0.03)
+    points, left, right = grid_matches(RIG, box, 0.1, stride)
+    world = (points.xyz @ WORLD_FROM_LEFT[:3, :3].T) + WORLD_FROM_LEFT[:3, 3]
+    patch = ((points.u_left > 40) & (points.u_left < 240) & (points.v_left > 40)
+             & (points.v_left < 240) & (world[:, 2] < 0.01)
+             & (np.hypot(world[:, 0] - 0.2, world[:, 1] - 0.15) > 0.06))
+    chosen = np.flatnonzero(patch)
+    assert len(chosen) > 4 * np.count_nonzero(world[:, 2] > 0.02), 'expected a large sheet'
+    rng = np.random.default_rng(stride)
+    lifted_along_rays(points, chosen, rng.uniform(0.15, 0.19, len(chosen)))
+    area = find_correlation_area(points, WORLD_FROM_LEFT, AreaConfig(),
+                                 float(left.P[0, 2] - right.P[0, 2]))
+    assert area.status == STATUS_OK, area.reason
+    assert area.top_height == pytest.approx(0.03, abs=0.001)
+    centre = np.average(area.xyz_world[:, :2], axis=0, weights=area.point_weights())
+    assert np.hypot(*(centre - box.centre_xy)) < 0.002
+
+
+def test_width_m_measures_the_short_side_whatever_the_orientation():
+    rng = np.random.default_rng(3)
+    strip = rng.uniform([-0.04, -0.01], [0.04, 0.01], (4000, 2))
+    angle = math.radians(35.0)
+    rotation = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
+    assert width_m(strip) == pytest.approx(0.02, rel=0.03)
+    assert width_m(strip @ rotation.T) == pytest.approx(0.02, rel=0.03)
+    assert width_m(strip[:1]) == 0.0
+
+
+@pytest.mark.parametrize('changes, message', [
+    ({'min_object_across_m': -0.01}, 'min_object_across_m=-0.01 must not be negative'),
+    ({'min_object_across_m': 0.1}, 'min_object_across_m=0.1 must be below max_object_across_m'),
+])
+def test_a_bad_min_object_across_is_refused(changes, message):
+    with pytest.raises(CorrelationAreaError, match=message):
+        find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT, AreaConfig(**changes))
+

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from grid_scenes import Box, camera_distance, grid_matches
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
+    NO_OBJECT,
     OUTLINE_IMAGE,
     OUTLINE_MATCHES,
     UNCERTAIN_TOP,
@@ -207,3 +208,28 @@ def test_max_score_decides_on_the_matches_even_when_the_image_comes_with_them():
                                   world_from_camera=pose)
     decision = chooser.decide(points, left, right)
     np.testing.assert_allclose(decision.best_point_world[:2], world[on_top[len(on_top) // 3], :2])
+
+
+def test_a_sliver_of_a_face_is_refused_as_narrower_than_any_object():
+    # Only a 6 mm strip of the box's top is matched (the rest plain and unmatched, and no image
+    # to outline it from): its centre is not the face's.
+    points, left, right = grid_matches(RIG, BOX, 0.05, 1)
+    pose = RIG.world_from_left_camera()
+    world = points.xyz.astype(float) @ pose[:3, :3].T + pose[:3, 3]
+    on_top = world[:, 2] > 0.5 * BOX.height
+    keep = ~on_top | (np.abs(world[:, 0] - (BOX.centre_xy[0] + 0.012)) <= 0.003)
+    sliver = points.subset(keep)
+    decision = decide(sliver, left, right)
+    assert decision.status == NO_OBJECT, decision.reason
+    assert 'narrower than any object (min_object_across_m=0.01)' in decision.reason
+    assert decision.best_point_world is None
+    allowed = decide(sliver, left, right, AreaConfig(min_object_across_m=0.0))
+    assert allowed.status == 'ok', allowed.reason
+
+
+def test_the_smallest_object_is_not_refused_as_too_narrow():
+    small = Box((0.2, 0.15), 0.015, 0.03)
+    points, left, right = grid_matches(RIG, small, 0.05, 1, image=True)
+    error, decision = error_mm(points, left, right, small)
+    assert decision.status == 'ok'
+    assert error < 3.0

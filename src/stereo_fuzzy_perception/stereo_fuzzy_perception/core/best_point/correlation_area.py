@@ -71,6 +71,10 @@ FACE_LEVEL = 0.5
 """A point of the face has an averaged height of at least this share of the top's."""
 
 HALF_NORMAL_MEDIAN = 0.6745
+
+IMPOSSIBLE_HEIGHT_SIGMAS = 3.0
+"""A match higher than max_object_height_m by more than this many sigmas of its height noise
+is no object's: a mismatch, left out of everything after the surface fit."""
 """Median of |N(0, 1)|."""
 
 SURFACE_AROUND_M = 0.1
@@ -116,9 +120,15 @@ class AreaConfig:
             axis, object_segmentation.across_m) is no object's [m]: the objects are at most
             80 mm across, plus the rim that window matching adds; a longer one is a patch of
             the surface or of the view's edge, and a wrong point is worse than none.
+        min_object_across_m: A top face narrower than this on the surface (across its
+            principal axis, object_segmentation.width_m) is no object's [m]: the objects are at
+            least 15 mm across; a narrower one is a sliver of a face (a plain top's rim, a strip
+            of side wall), whose centre is not the face's; 0 turns the test off.
         max_object_height_m: A top face higher than this above the work surface is no
             object's [m]: the objects stand at most 80 mm high; a higher face is a blob of
-            mismatches (repeated texture matched a period off) floating over the scene.
+            mismatches (repeated texture matched a period off) floating over the scene. Matches
+            higher than this by more than IMPOSSIBLE_HEIGHT_SIGMAS of their noise are left out
+            after the surface fit.
         max_top_spread_m: A top face whose heights scatter more than this beyond what its
             points' noise explains (sqrt(std^2 - sigma_h^2), sigma_h their median height
             noise) is not measured well enough for a point within millimetres [m]: a level
@@ -149,6 +159,7 @@ class AreaConfig:
     assumed_disparity_sigma_px: float = 0.2
     min_points: int = 20
     max_object_across_m: float = 0.10
+    min_object_across_m: float = 0.01
     max_object_height_m: float = 0.10
     max_top_spread_m: float = 0.002
     min_top_fill: float = 0.5
@@ -166,9 +177,13 @@ class AreaConfig:
                      'max_object_height_m'):
             if not getattr(self, name) > 0.0:
                 return f'{name}={getattr(self, name)} must be positive'
-        for name in ('max_top_spread_m', 'min_top_fill', 'area_top_sigmas'):
+        for name in ('max_top_spread_m', 'min_top_fill', 'area_top_sigmas',
+                     'min_object_across_m'):
             if not getattr(self, name) >= 0.0:
                 return f'{name}={getattr(self, name)} must not be negative'
+        if not self.min_object_across_m < self.max_object_across_m:
+            return (f'min_object_across_m={self.min_object_across_m} must be below '
+                    f'max_object_across_m={self.max_object_across_m}')
         if self.object_sigmas < self.surface_margin_sigmas:
             return (f'object_sigmas={self.object_sigmas} must not be below '
                     f'surface_margin_sigmas={self.surface_margin_sigmas}')
@@ -358,6 +373,15 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     per_px = height_per_disparity(world, camera_centre, disparity, surface.normal)
     sigma = surface.disparity_sigma_px * per_px
     heights = surface.heights(world)
+    # No object stands higher than max_object_height_m: a match above it by more than its noise
+    # is a mismatch (a periodic table matched a period off, a plain one matched on sensor
+    # noise), and takes no part in the averages, the surface's noise or the regions.
+    possible = heights <= config.max_object_height_m + IMPOSSIBLE_HEIGHT_SIGMAS * sigma
+    if not np.all(possible):
+        world, selected = world[:, possible], selected[possible]
+        u_left, v_left, u_right, score, disparity, per_px, sigma, heights = (
+            column[possible] for column in (u_left, v_left, u_right, score, disparity, per_px,
+                                            sigma, heights))
     # Heights in disparity pixels have the same noise everywhere; averaged over a square of
     # the image they show an object that one point's noise would hide, and the surface's
     # noise after the same averaging (MAD of the surface points) is the unit of the test.

@@ -248,10 +248,28 @@ def across_m(xy: np.ndarray) -> float:
     Args:
         xy: (M, 2) positions on the surface [m].
     """
+    return _principal_sides_m(xy)[1]
+
+
+def width_m(xy: np.ndarray) -> float:
+    """Return the width [m] of a set of points on the surface across their principal axis.
+
+    As across_m, along the other axis: the short side of a rectangle, 0.87 times the diameter
+    of a disc.
+
+    Args:
+        xy: (M, 2) positions on the surface [m].
+    """
+    return _principal_sides_m(xy)[0]
+
+
+def _principal_sides_m(xy: np.ndarray) -> tuple[float, float]:
+    """Return the sides [m] of the uniform rectangle with the spread of xy (short, long)."""
     if len(xy) < 2:
-        return 0.0
-    spread = np.cov(np.asarray(xy, dtype=float).T)
-    return math.sqrt(12.0 * max(float(np.linalg.eigvalsh(spread)[-1]), 0.0))
+        return 0.0, 0.0
+    variances = np.linalg.eigvalsh(np.cov(np.asarray(xy, dtype=float).T))
+    short, long = (math.sqrt(12.0 * max(float(value), 0.0)) for value in variances)
+    return short, long
 
 
 def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights: np.ndarray,

@@ -28,6 +28,7 @@ import numpy as np
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     ASSUMED_SURFACE,
     DEGENERATE_AREA,
+    NO_OBJECT,
     NO_RULE_FIRED,
     STATUS_OK,
     AreaConfig,
@@ -46,6 +47,7 @@ from stereo_fuzzy_perception.core.best_point.neural_baseline import (
     neural_base_point,
     neural_features,
 )
+from stereo_fuzzy_perception.core.best_point.object_segmentation import width_m
 from stereo_fuzzy_perception.core.best_point.rule_base import (
     RuleBase,
     RuleBaseError,
@@ -362,18 +364,25 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     the image when the matches bring it (face_outline.py), or why there is none.
 
     Training (area_features) goes through here too, so the fitted selectors learn on the
-    areas they will be given.
+    areas they will be given. A face narrower than any object (min_object_across_m) is
+    refused whichever way its outline came.
     """
     area = find_correlation_area(points, world_from_camera, config, disparity_shift(left, right))
-    if points.left_image is None or not config.outline_from_image:
-        return area
-    if area.ok:
-        return face_from_image(area, points.left_image, left, right, world_from_camera,
-                               config.min_points) or area
-    if area.face_in_pieces is not None:
-        return plain_face_from_image(area.face_in_pieces, points.left_image, left, right,
-                                     world_from_camera, config.min_points,
-                                     config.max_object_across_m) or area
+    if points.left_image is not None and config.outline_from_image:
+        if area.ok:
+            area = face_from_image(area, points.left_image, left, right, world_from_camera,
+                                   config.min_points) or area
+        elif area.face_in_pieces is not None:
+            area = plain_face_from_image(area.face_in_pieces, points.left_image, left, right,
+                                         world_from_camera, config.min_points,
+                                         config.max_object_across_m) or area
+    if area.ok and config.min_object_across_m > 0.0:
+        width = width_m(area.xyz_world[:, :2])
+        if width < config.min_object_across_m:
+            return replace(area, status=NO_OBJECT, reason=(
+                f'the top face found is {1000.0 * width:.1f} mm wide on the work surface, '
+                f'narrower than any object (min_object_across_m={config.min_object_across_m:g})'
+                ": a sliver of a face, whose centre is not the face's"))
     return area
 
 
