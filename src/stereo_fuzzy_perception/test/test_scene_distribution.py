@@ -185,6 +185,21 @@ def test_perfect_points_lie_on_the_object_and_triangulate_back_to_themselves(mat
     assert len(matched_scene.perfect[3].points) < len(perfect.points) / 4
 
 
+def test_perfect_points_lie_on_the_matches_pixel_grid(matched_scene):
+    # The ceiling's points are the pixels correlation_node would triangulate: the fuzzy stage
+    # weights and groups points on that grid, so the ceiling must come on it too.
+    for stride in (1, 3):
+        perfect = matched_scene.perfect[stride].points
+        matched = matched_scene.matched[stride].points
+        for column in (perfect.u_left, perfect.v_left):
+            assert np.all(column % stride == 0), f'stride {stride}: off the pixel grid'
+        matched_cells = set(zip(matched.u_left.tolist(), matched.v_left.tolist(), strict=True))
+        perfect_cells = set(zip(perfect.u_left.tolist(), perfect.v_left.tolist(), strict=True))
+        # (the rectified image's border rows and columns see past the raw image)
+        shared = len(matched_cells & perfect_cells) / len(matched_cells)
+        assert shared > 0.97, f'stride {stride}: {100 * shared:.1f} % of the matched pixels'
+
+
 def test_matched_points_at_stride_3_are_the_stride_1_map_sampled(matched_scene):
     one, three = matched_scene.matched[1].points, matched_scene.matched[3].points
     assert 0 < len(three) < len(one)

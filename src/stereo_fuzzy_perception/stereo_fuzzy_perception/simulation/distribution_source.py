@@ -64,10 +64,17 @@ def matcher_for(calibration: StereoCalibration, scene: DistributionScene,
 
 def perfect_points(frame: StereoFrame, rectified: StereoCalibration, stride: int = 1
                    ) -> MatchedPoints:
-    """Return the left image's pixels as 3D points from the depth buffer (every stride-th).
+    """Return the 3D points of the left rectified image's pixels from the depth buffer.
 
-    xyz is in the left optical frame (as the matcher gives it); u_left, v_left and u_right are
-    where the point lies in the rectified pair; the score is 1. Every pixel that sees something
+    The pixels are those correlation_node would triangulate: every stride-th row and column of
+    the left rectified image, so that the ceiling's points lie on the same grid as the
+    matches (the fuzzy stage weights a point on the pixel grid by the patch of the face it
+    sees, and finds regions on that grid). Each pixel's ray is taken back into the raw camera
+    (no lens distortion: the renderer's pinhole). Where it crosses the raw image between
+    pixels of one surface, the point is on the ray at the depth interpolated between them
+    (exact for a plane); across an edge it is the nearest raw pixel's own point, so that no
+    point floats off the scene. xyz is in the left optical frame (as the matcher gives it),
+    u_left - u_right is the point's disparity, the score is 1. Every pixel that sees something
     is kept, the work surface too: the fuzzy stage measures the surface from its points.
 
     Raises:
@@ -75,21 +82,66 @@ def perfect_points(frame: StereoFrame, rectified: StereoCalibration, stride: int
     """
     if frame.left_depth is None:
         raise ValueError('the frame has no depth map: render it with with_maps=True')
-    K = frame.calibration.left.K
-    depth = frame.left_depth[::stride, ::stride]
-    rows, columns = np.nonzero(depth < 0.99 * float(np.max(frame.left_depth)))
-    z = depth[rows, columns]
-    u, v = columns * stride, rows * stride
-    xyz = np.stack([(u - K[0, 2]) / K[0, 0] * z, (v - K[1, 2]) / K[1, 1] * z, z], axis=1)
-    in_rectified = xyz @ np.asarray(rectified.left.R, dtype=float).T
-    homogeneous = np.column_stack([in_rectified, np.ones(len(z))])
-    left_uvw = homogeneous @ np.asarray(rectified.left.P, dtype=float).T
+    raw_depth = np.asarray(frame.left_depth, dtype=float)
+    height, width = raw_depth.shape
+    K = np.asarray(frame.calibration.left.K, dtype=float)
+    left_p = np.asarray(rectified.left.P, dtype=float)
+    rotation = np.asarray(rectified.left.R, dtype=float)  # rectified <- raw optical frame
+    rows, columns = np.mgrid[0:height:stride, 0:width:stride]
+    u, v = columns.ravel().astype(float), rows.ravel().astype(float)
+    rectified_rays = np.stack([(u - left_p[0, 2]) / left_p[0, 0],
+                               (v - left_p[1, 2]) / left_p[1, 1], np.ones_like(u)], axis=1)
+    rays = rectified_rays @ rotation  # R^T applied to row vectors: the raw optical frame
+    with np.errstate(divide='ignore', invalid='ignore'):
+        raw_u = K[0, 0] * rays[:, 0] / rays[:, 2] + K[0, 2]
+        raw_v = K[1, 1] * rays[:, 1] / rays[:, 2] + K[1, 2]
+    inside = ((rays[:, 2] > 0) & (raw_u >= 0) & (raw_u <= width - 1) & (raw_v >= 0)
+              & (raw_v <= height - 1))
+    u, v, rays, raw_u, raw_v = u[inside], v[inside], rays[inside], raw_u[inside], raw_v[inside]
+    depth, one_surface = _depth_along(raw_depth, raw_u, raw_v)
+    # across an edge: the nearest raw pixel's own ray
+    own = ~one_surface
+    rays[own] = np.column_stack([(np.rint(raw_u[own]) - K[0, 2]) / K[0, 0],
+                                 (np.rint(raw_v[own]) - K[1, 2]) / K[1, 1],
+                                 np.ones(int(own.sum()))])
+    seen = depth < 0.99 * float(np.max(raw_depth))
+    xyz = rays[seen] * (depth[seen] / rays[seen, 2])[:, np.newaxis]
+    homogeneous = np.column_stack([xyz @ rotation.T, np.ones(len(xyz))])
+    left_uvw = homogeneous @ left_p.T
     right_uvw = homogeneous @ np.asarray(rectified.right.P, dtype=float).T
-    return MatchedPoints(xyz=xyz.astype(np.float32),
-                         u_left=(left_uvw[:, 0] / left_uvw[:, 2]).astype(np.float32),
-                         v_left=(left_uvw[:, 1] / left_uvw[:, 2]).astype(np.float32),
-                         u_right=(right_uvw[:, 0] / right_uvw[:, 2]).astype(np.float32),
-                         score=np.ones(len(z), dtype=np.float32))
+    disparity = left_uvw[:, 0] / left_uvw[:, 2] - right_uvw[:, 0] / right_uvw[:, 2]
+    return MatchedPoints(xyz=xyz.astype(np.float32), u_left=u[seen].astype(np.float32),
+                         v_left=v[seen].astype(np.float32),
+                         u_right=(u[seen] - disparity).astype(np.float32),
+                         score=np.ones(len(xyz), dtype=np.float32))
+
+
+def _depth_along(depth: np.ndarray, u: np.ndarray, v: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Return the depth buffer at raw image positions (u, v) [px] inside the image, and where
+    the four pixels around each lie on one surface.
+
+    Inverse depth is linear across the image of a plane: on one surface (the four pixels'
+    inverse depths within SAME_SURFACE of each other) it is interpolated bilinearly; across
+    an edge the nearest pixel's depth is returned.
+    """
+    column, row = np.floor(u).astype(int), np.floor(v).astype(int)
+    column1 = np.minimum(column + 1, depth.shape[1] - 1)
+    row1 = np.minimum(row + 1, depth.shape[0] - 1)
+    du, dv = u - column, v - row
+    corners = np.stack([depth[row, column], depth[row, column1], depth[row1, column],
+                        depth[row1, column1]])
+    inverse = 1.0 / corners
+    weights = np.stack([(1 - du) * (1 - dv), du * (1 - dv), (1 - du) * dv, du * dv])
+    blended = 1.0 / np.sum(weights * inverse, axis=0)
+    nearest = corners[np.argmax(weights, axis=0), np.arange(len(u))]
+    one_surface = np.ptp(inverse, axis=0) <= SAME_SURFACE * np.min(inverse, axis=0)
+    return np.where(one_surface, blended, nearest), one_surface
+
+
+SAME_SURFACE = 0.01
+"""Four neighbouring depth-buffer pixels whose inverse depths differ by less than this share
+lie on one surface (perfect_points interpolates between them)."""
 
 
 @dataclass
