@@ -1,9 +1,12 @@
 """The rendered scene source: pybullet images through the correlation stage, as a scene record."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig
 from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser
+from stereo_fuzzy_perception.core.matching.rectification import rectification_maps
 from stereo_fuzzy_perception.core.rig_geometry import transform_points
 from stereo_fuzzy_perception.simulation.distribution_source import perfect_points
 from stereo_fuzzy_perception.simulation.rendered_scenes import RenderedSceneSource
@@ -61,3 +64,27 @@ def test_a_frame_with_maps_gives_the_same_scene_and_its_perfect_points():
     assert decision.has_best_point, decision.status_text()
     error_mm = 1000.0 * np.linalg.norm(decision.best_point_world - scene.target_world)
     assert error_mm < 3.0, f'centroid on perfect points {error_mm:.1f} mm from the top centre'
+
+
+def test_perfect_points_keep_a_surface_that_fills_the_view():
+    # A rig looking straight down sees nothing but the table: its farthest pixels are table
+    # too, and the ceiling must keep them (only pixels that see nothing are left out).
+    with RenderedSceneSource() as source:
+        frame = source.render(7, 'cylinder', with_maps=True)
+        result = source.match(frame)
+    height, width = frame.left_depth.shape
+    table = np.repeat(np.linspace(0.40, 0.45, height)[:, np.newaxis], width, axis=1)
+    perfect = perfect_points(dataclasses.replace(frame, left_depth=table), result.rectified, 3)
+    # every pixel of the grid whose ray stays inside the raw image (the rectification maps)
+    maps = rectification_maps(frame.calibration.left)
+    assert maps.map_x is not None and maps.map_y is not None
+    raw_x, raw_y = maps.map_x[::3, ::3], maps.map_y[::3, ::3]
+    inside = int(np.sum((raw_x >= 0) & (raw_x <= width - 1) & (raw_y >= 0)
+                        & (raw_y <= height - 1)))
+    assert len(perfect) == pytest.approx(inside, rel=0.005)
+    assert float(np.max(perfect.xyz[:, 2])) == pytest.approx(0.45, abs=0.001)
+    nothing = table.copy()
+    nothing[: height // 2] = np.inf
+    half = perfect_points(dataclasses.replace(frame, left_depth=nothing), result.rectified, 3)
+    assert 0.4 * inside < len(half) < 0.6 * inside
+    assert np.all(np.isfinite(half.xyz))

@@ -104,7 +104,7 @@ def perfect_points(frame: StereoFrame, rectified: StereoCalibration, stride: int
     rays[own] = np.column_stack([(np.rint(raw_u[own]) - K[0, 2]) / K[0, 0],
                                  (np.rint(raw_v[own]) - K[1, 2]) / K[1, 1],
                                  np.ones(int(own.sum()))])
-    seen = depth < 0.99 * float(np.max(raw_depth))
+    seen = np.isfinite(depth)
     xyz = rays[seen] * (depth[seen] / rays[seen, 2])[:, np.newaxis]
     homogeneous = np.column_stack([xyz @ rotation.T, np.ones(len(xyz))])
     left_uvw = homogeneous @ left_p.T
@@ -131,9 +131,10 @@ def _depth_along(depth: np.ndarray, u: np.ndarray, v: np.ndarray
     du, dv = u - column, v - row
     corners = np.stack([depth[row, column], depth[row, column1], depth[row1, column],
                         depth[row1, column1]])
-    inverse = 1.0 / corners
+    inverse = 1.0 / corners  # 0 where a pixel sees nothing: never one surface with the others
     weights = np.stack([(1 - du) * (1 - dv), du * (1 - dv), (1 - du) * dv, du * dv])
-    blended = 1.0 / np.sum(weights * inverse, axis=0)
+    with np.errstate(divide='ignore'):
+        blended = 1.0 / np.sum(weights * inverse, axis=0)
     nearest = corners[np.argmax(weights, axis=0), np.arange(len(u))]
     one_surface = np.ptp(inverse, axis=0) <= SAME_SURFACE * np.min(inverse, axis=0)
     return np.where(one_surface, blended, nearest), one_surface

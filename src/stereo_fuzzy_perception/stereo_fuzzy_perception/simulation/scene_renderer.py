@@ -76,7 +76,8 @@ class StereoFrame:
         scene: The scene rendered.
         left_mask: Pixels showing the object in the left image (when asked for), else None.
         right_mask: The same for the right image.
-        left_depth: Depth along the left optical axis [m] per pixel (when asked for), else None.
+        left_depth: Depth along the left optical axis [m] per pixel, infinite where the pixel
+            sees nothing (when asked for), else None.
         right_depth: The same for the right image.
     """
 
@@ -228,6 +229,7 @@ class SceneRenderer:
             near, far = camera.near_m, camera.far_m
             depth = far * near / (far - (far - near) * np.reshape(
                 np.asarray(buffer, dtype=np.float64), (height, width)))
+            depth[ids < 0] = np.inf  # the ray met nothing (a view past the table's edge)
         if self._maps is not None:
             rgb = cv2.remap(rgb, *self._maps, interpolation=cv2.INTER_LINEAR,
                             borderMode=cv2.BORDER_REPLICATE)
