@@ -274,14 +274,20 @@ def test_top_height_of_geometric_scene_is_the_object_top(kind):
     assert horizontal < 0.005, f'top band centroid {1000 * horizontal:.2f} mm off'
 
 
-def test_a_top_longer_than_any_object_is_refused():
+@pytest.mark.parametrize('face, why, limit, wider', [
     # A 150 mm slab is a patch of the surface or of the view's edge, not an object to pick.
-    slab = Box((0.2, 0.15), 0.15, 0.03)
-    area = area_in(RIG, slab, 0.1, 3)
-    assert area.status == NO_OBJECT, f'expected the slab refused, got {area.status}'
-    assert 'longer than any object' in area.reason
-    assert 'max_object_across_m=0.1' in area.reason
-    allowed = area_in(RIG, slab, 0.1, 3, config=AreaConfig(max_object_across_m=0.3))
+    (Box((0.2, 0.15), 0.15, 0.03), 'longer than any object', 'max_object_across_m=0.1',
+     AreaConfig(max_object_across_m=0.3)),
+    # Within its noise of max_object_height_m a face is kept, and refused as too high.
+    (Box((0.2, 0.15), 0.04, 0.1005), 'higher than any object', 'max_object_height_m=0.1',
+     AreaConfig(max_object_height_m=0.2)),
+], ids=['long', 'high'])
+def test_a_face_beyond_any_objects_size_is_refused_by_name(face, why, limit, wider):
+    area = area_in(RIG, face, 0.1, 3)
+    assert area.status == NO_OBJECT, f'expected the face refused, got {area.status}'
+    assert why in area.reason
+    assert limit in area.reason
+    allowed = area_in(RIG, face, 0.1, 3, config=wider)
     assert allowed.status == STATUS_OK, allowed.reason
 
 
@@ -291,14 +297,16 @@ def test_the_largest_object_is_not_refused_for_its_size():
     assert area.status == STATUS_OK, area.reason
 
 
-def test_across_m_measures_the_long_side_whatever_the_orientation():
+@pytest.mark.parametrize('side, expected', [(across_m, 0.08), (width_m, 0.02)],
+                         ids=['long side', 'short side'])
+def test_a_strips_sides_are_measured_whatever_the_orientation(side, expected):
     rng = np.random.default_rng(3)
     strip = rng.uniform([-0.04, -0.01], [0.04, 0.01], (4000, 2))
     angle = math.radians(35.0)
     rotation = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
-    assert across_m(strip) == pytest.approx(0.08, rel=0.03)
-    assert across_m(strip @ rotation.T) == pytest.approx(0.08, rel=0.03)
-    assert across_m(strip[:1]) == 0.0
+    assert side(strip) == pytest.approx(expected, rel=0.03)
+    assert side(strip @ rotation.T) == pytest.approx(expected, rel=0.03)
+    assert side(strip[:1]) == 0.0
 
 
 def test_a_zero_max_object_across_is_refused():
@@ -316,15 +324,6 @@ def test_a_top_higher_than_any_object_is_refused():
     allowed = area_in(RIG, tower, 0.1, 3, config=AreaConfig(max_object_height_m=0.2))
     assert allowed.status == STATUS_OK, allowed.reason
     assert allowed.top_height == pytest.approx(0.15, abs=0.002)
-
-
-def test_a_top_just_above_the_highest_object_is_refused_by_name():
-    # Within its noise of max_object_height_m the face is kept, and refused as too high.
-    tower = Box((0.2, 0.15), 0.04, 0.1005)
-    area = area_in(RIG, tower, 0.1, 3)
-    assert area.status == NO_OBJECT, f'expected the face refused, got {area.status}'
-    assert 'higher than any object' in area.reason
-    assert 'max_object_height_m=0.1' in area.reason
 
 
 def lifted_along_rays(points: MatchedPoints, chosen: np.ndarray, heights: np.ndarray
@@ -358,16 +357,6 @@ def test_matches_higher_than_any_object_are_left_out(stride):
     assert area.top_height == pytest.approx(0.03, abs=0.001)
     centre = np.average(area.xyz_world[:, :2], axis=0, weights=area.point_weights())
     assert np.hypot(*(centre - box.centre_xy)) < 0.002
-
-
-def test_width_m_measures_the_short_side_whatever_the_orientation():
-    rng = np.random.default_rng(3)
-    strip = rng.uniform([-0.04, -0.01], [0.04, 0.01], (4000, 2))
-    angle = math.radians(35.0)
-    rotation = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
-    assert width_m(strip) == pytest.approx(0.02, rel=0.03)
-    assert width_m(strip @ rotation.T) == pytest.approx(0.02, rel=0.03)
-    assert width_m(strip[:1]) == 0.0
 
 
 @pytest.mark.parametrize('changes, message', [
