@@ -62,6 +62,11 @@ def matcher_for(calibration: StereoCalibration, scene: DistributionScene,
                                disparity_range=derived.disparity_range)
 
 
+SAME_SURFACE = 0.01
+"""Four neighbouring depth-buffer pixels whose inverse depths differ by less than this share
+lie on one surface (perfect_points interpolates between them)."""
+
+
 def perfect_points(frame: StereoFrame, rectified: StereoCalibration, stride: int = 1
                    ) -> MatchedPoints:
     """Return the 3D points of the left rectified image's pixels from the depth buffer.
@@ -138,11 +143,6 @@ def _depth_along(depth: np.ndarray, u: np.ndarray, v: np.ndarray
     nearest = corners[np.argmax(weights, axis=0), np.arange(len(u))]
     one_surface = np.ptp(inverse, axis=0) <= SAME_SURFACE * np.min(inverse, axis=0)
     return np.where(one_surface, blended, nearest), one_surface
-
-
-SAME_SURFACE = 0.01
-"""Four neighbouring depth-buffer pixels whose inverse depths differ by less than this share
-lie on one surface (perfect_points interpolates between them)."""
 
 
 @dataclass

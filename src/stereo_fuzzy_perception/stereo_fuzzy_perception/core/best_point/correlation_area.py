@@ -71,11 +71,11 @@ FACE_LEVEL = 0.5
 """A point of the face has an averaged height of at least this share of the top's."""
 
 HALF_NORMAL_MEDIAN = 0.6745
+"""Median of |N(0, 1)|."""
 
 IMPOSSIBLE_HEIGHT_SIGMAS = 3.0
 """A match higher than max_object_height_m by more than this many sigmas of its height noise
 is no object's: a mismatch, left out of everything after the surface fit."""
-"""Median of |N(0, 1)|."""
 
 SURFACE_AROUND_M = 0.1
 """The work surface is measured this far around the workspace box too [m]."""
