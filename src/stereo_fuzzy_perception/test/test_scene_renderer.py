@@ -219,3 +219,26 @@ def test_render_scene_returns_images_calibration_and_ground_truth():
     assert frame.left.shape == (120, 160, 3) and frame.right.shape == (120, 160, 3)
     assert frame.calibration.problem() is None
     assert frame.ground_truth.target_world[2] == frame.scene.scene_object.height_m
+
+
+def test_an_oversampled_render_is_the_same_scene_antialiased_with_the_same_maps():
+    # TinyRenderer puts every texture edge on whole pixels; a camera's pixel integrates light
+    # over its area. Oversampling averages 3 x 3 rendered samples per pixel.
+    scene = random_scene(7, 'cubic_square', camera=SimulatedCamera(width=160, height=120))
+    with SceneRenderer(camera=SimulatedCamera(width=160, height=120),
+                       encoding='mono8') as renderer:
+        sharp = renderer.render(scene, with_maps=True)
+        smooth = renderer.render(scene, with_maps=True, oversampling=3)
+        with pytest.raises(RenderError, match='oversampling must be an odd factor'):
+            renderer.render(scene, oversampling=2)
+    for side in ('left', 'right'):
+        aliased, integrated = (getattr(frame, side).astype(float) for frame in (sharp, smooth))
+        # the same scene at the same place: the images agree once the pixel-scale detail is
+        # blurred away ...
+        blur = [cv2.GaussianBlur(image, (0, 0), 3.0) for image in (aliased, integrated)]
+        assert np.abs(blur[0] - blur[1]).mean() < 2.0
+        # ... and differ in it: averaged samples have less pixel-to-pixel contrast
+        steps = [np.abs(np.diff(image, axis=1)).mean() for image in (aliased, integrated)]
+        assert steps[1] < 0.9 * steps[0], steps
+    assert np.array_equal(sharp.left_mask, smooth.left_mask)
+    assert np.array_equal(sharp.right_depth, smooth.right_depth)

@@ -178,14 +178,18 @@ def _synthetic(frame: StereoFrame, scene: DistributionScene, points: MatchedPoin
 
 
 def match_scene(scene: DistributionScene, strides: Iterable[int] = (1,), ceiling: bool = False,
-                opencv: bool = False, base_matcher: MatcherConfig | None = None
-                ) -> MatchedDistributionScene:
-    """Render, match and (if asked) build the ceiling and the OpenCV reference of one scene."""
+                opencv: bool = False, base_matcher: MatcherConfig | None = None,
+                oversampling: int = 1) -> MatchedDistributionScene:
+    """Render, match and (if asked) build the ceiling and the OpenCV reference of one scene.
+
+    `oversampling` > 1 renders the images antialiased, as a camera integrates light over a
+    pixel (SceneRenderer.render); 1 renders them as TinyRenderer does.
+    """
     strides = tuple(strides)
     rig = scene.rig
     with SceneRenderer(camera=rig.camera, rig=rig.rig, encoding='mono8') as renderer:
         frame = renderer.render(scene.scene, with_maps=ceiling, lighting=scene.lighting,
-                                sensor=scene.sensor())
+                                sensor=scene.sensor(), oversampling=oversampling)
     config = matcher_for(frame.calibration, scene, base_matcher)
     # One stride: match only its rows, as correlation_node does; several: match every row
     # once and take each stride's points from the same disparity map (the same points).
@@ -218,6 +222,7 @@ class _Job:
     ceiling: bool
     opencv: bool
     settings: DistributionSettings
+    oversampling: int
 
 
 def _single_threaded() -> None:
@@ -225,18 +230,20 @@ def _single_threaded() -> None:
 
 
 def _run(job: _Job) -> MatchedDistributionScene:
-    return match_scene(job.planned.draw(job.settings), job.strides, job.ceiling, job.opencv)
+    return match_scene(job.planned.draw(job.settings), job.strides, job.ceiling, job.opencv,
+                       oversampling=job.oversampling)
 
 
 def match_plan(plan: Iterable[PlannedScene], strides: Iterable[int] = (1,),
                ceiling: bool = False, opencv: bool = False, jobs: int = 1,
-               settings: DistributionSettings = DEFAULT_SETTINGS
+               settings: DistributionSettings = DEFAULT_SETTINGS, oversampling: int = 1
                ) -> Iterator[MatchedDistributionScene]:
     """Yield match_scene of every planned scene, in plan order, on `jobs` processes.
 
     Each process gets its own pybullet connection; results are the same for any `jobs`.
     """
-    work = [_Job(planned, tuple(strides), ceiling, opencv, settings) for planned in plan]
+    work = [_Job(planned, tuple(strides), ceiling, opencv, settings, oversampling)
+            for planned in plan]
     if jobs <= 1:
         yield from map(_run, work)
         return

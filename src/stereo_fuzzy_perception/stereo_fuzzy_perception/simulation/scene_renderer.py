@@ -240,7 +240,7 @@ class SceneRenderer:
         return np.ascontiguousarray(rgb), ids, depth
 
     def render(self, scene: Scene, with_maps: bool = False, lighting: Lighting | None = None,
-               sensor: SensorModel | None = None) -> StereoFrame:
+               sensor: SensorModel | None = None, oversampling: int = 1) -> StereoFrame:
         """Render `scene` with both cameras.
 
         Args:
@@ -249,23 +249,35 @@ class SceneRenderer:
             lighting: This scene's light (the renderer's when None).
             sensor: This scene's noise, gain and offset (the renderer's when None); its
                 distortion must be the renderer's (the maps are built once).
+            oversampling: Odd factor: each pixel of the images is the mean of
+                oversampling^2 rendered ones, as a camera's sensor integrates light over its
+                pixel. 1 renders as TinyRenderer does, without antialiasing: every texture
+                edge falls on whole pixels, in each camera independently. The masks and
+                depth maps are rendered at the image's own resolution either way.
 
         Returns:
             Images, calibration and ground truth of the scene.
 
         Raises:
-            RenderError: For a sensor whose distortion differs from the renderer's.
+            RenderError: For a sensor whose distortion differs from the renderer's, or an
+                even or non-positive `oversampling`.
         """
         if sensor is not None and sensor.distortion != self.sensor.distortion:
             raise RenderError(f'a scene sensor cannot change the distortion '
                               f'{self.sensor.distortion} the renderer was built with')
+        _check_oversampling(oversampling)
         sensor = sensor or self.sensor
         body = self._build(scene)
         rng = np.random.default_rng([scene.seed, 0x5E45])
-        left_rgb, left_ids, left_depth = self._render_view(
-            self.rig.world_from_left_camera(), with_maps, lighting)
-        right_rgb, right_ids, right_depth = self._render_view(
-            self.rig.world_from_right_camera(), with_maps, lighting)
+        views = []
+        for pose in (self.rig.world_from_left_camera(), self.rig.world_from_right_camera()):
+            ids = depth = None
+            if with_maps or oversampling == 1:
+                rgb, ids, depth = self._render_view(pose, with_maps, lighting)
+            if oversampling > 1:
+                rgb = self._render_oversampled(pose, oversampling, lighting)
+            views.append((rgb, ids, depth))
+        (left_rgb, left_ids, left_depth), (right_rgb, right_ids, right_depth) = views
         left = apply_sensor(to_encoding(left_rgb, self.encoding), rng, 1.0, 0.0, sensor.noise_std)
         right = apply_sensor(to_encoding(right_rgb, self.encoding), rng, sensor.right_gain,
                              sensor.right_offset, sensor.noise_std)
@@ -318,8 +330,7 @@ class SceneRenderer:
         Raises:
             RenderError: For an even or non-positive `oversampling`.
         """
-        if oversampling < 1 or oversampling % 2 == 0:
-            raise RenderError(f'oversampling must be an odd factor >= 1, got {oversampling}')
+        _check_oversampling(oversampling)
         self._fresh_world()
         x0, y0, x1, y1 = extent_m
         # pybullet samples textures with v = 0 at the image's last row.
@@ -340,7 +351,8 @@ class SceneRenderer:
                              sensor.right_offset, sensor.noise_std)
         return left, right
 
-    def _render_oversampled(self, world_from_camera: np.ndarray, factor: int) -> np.ndarray:
+    def _render_oversampled(self, world_from_camera: np.ndarray, factor: int,
+                            lighting: Lighting | None = None) -> np.ndarray:
         """Render one camera's RGB image at `factor` x the resolution and average it down.
 
         Rendered pixel (u_k, v_k) sees the ray of image point (u_k / k, (v_k + 1) / k - 1) of
@@ -348,7 +360,7 @@ class SceneRenderer:
         pixel (u, v) averages the k x k block centred on (k u, k v + k - 1).
         """
         if factor == 1:
-            return self._render_view(world_from_camera, False)[0]
+            return self._render_view(world_from_camera, False, lighting)[0]
         camera, margin, maps = self.camera, self._margin_px, self._maps
         width, height = camera.width + 2 * margin, camera.height + 2 * margin
         fov_deg = math.degrees(2.0 * math.atan((height / 2.0) / camera.focal_px))
@@ -357,7 +369,7 @@ class SceneRenderer:
                                           vertical_fov_deg=fov_deg, near_m=camera.near_m,
                                           far_m=camera.far_m)
             self._margin_px, self._maps = 0, None
-            fine = self._render_view(world_from_camera, False)[0].astype(np.float32)
+            fine = self._render_view(world_from_camera, False, lighting)[0].astype(np.float32)
         finally:
             self.camera, self._margin_px, self._maps = camera, margin, maps
         half = (factor - 1) // 2
@@ -369,6 +381,11 @@ class SceneRenderer:
         distorted: np.ndarray = cv2.remap(ideal, *maps, interpolation=cv2.INTER_LINEAR,
                                           borderMode=cv2.BORDER_REPLICATE)
         return distorted
+
+
+def _check_oversampling(oversampling: int) -> None:
+    if oversampling < 1 or oversampling % 2 == 0:
+        raise RenderError(f'oversampling must be an odd factor >= 1, got {oversampling}')
 
 
 def render_scene(seed: int, object_type: ObjectType | str | None = None,
