@@ -1,12 +1,15 @@
 #!/usr/bin/env python3
-"""DEVELOPMENT ONLY: tune the correlation area on the TRAIN split of the randomized scenes.
+"""DEVELOPMENT ONLY: tune the correlation area on the train and validation splits.
 
-Never run this on the evaluation split: rig_generalisation_benchmark.py measures there, once,
-what was tuned here. This renders and matches train-split scenes (simulation/scene_distribution
-.py, split 'train': rigs and scene seeds of their own) at one point stride with
-correlation_node's default settings, caches the matched points (pickle, --cache), and grades
-the centroid and fuzzy_fitted selectors with the AreaConfig defaults; per scene it lists the
-error or why no point was chosen (the correlation area's status and reason), worst first.
+Never run this on the evaluation split (it refuses to): rig_generalisation_benchmark.py
+measures there, once, what was tuned here. This renders and matches scenes of the train split
+(simulation/scene_distribution.py, split 'train': rigs and scene seeds of their own) or, with
+--split validation, of the validation split (the train split's rigs, seeds of their own: a
+change chosen on one split is checked on the other) at one point stride with correlation_node's
+default settings, caches the matched points (pickle, --cache), and grades the centroid and
+fuzzy_fitted selectors with the AreaConfig defaults; per scene it lists the error or why no
+point was chosen (the correlation area's status and reason), worst first. --oversampling 3
+renders the images antialiased (SceneRenderer.render), as rig_generalisation_benchmark.py can.
 
 `--decompose` tells where the error comes from. The matched pixels whose rays meet the true
 top face ("true pixels") and the correlation area's pixels ("area pixels") are each cut with a
@@ -16,6 +19,7 @@ height costs, true pixels at the true height what is left to the matcher's cover
 
     source scripts/env.sh
     nice python benchmarks/rig_tuning.py --per-type 15
+    nice python benchmarks/rig_tuning.py --per-type 15 --split validation
     nice python benchmarks/rig_tuning.py --per-type 15 --decompose
 """
 
@@ -47,21 +51,25 @@ from stereo_fuzzy_perception.simulation.distribution_source import match_plan  #
 from stereo_fuzzy_perception.simulation.scene_distribution import split_plan  # noqa: E402
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene  # noqa: E402
 
-SPLIT = 'train'
-"""The only split this script reads."""
+SPLITS = ('train', 'validation')
+"""The only splits this script reads: never the evaluation split."""
 
 
-def scenes(per_type: int, stride: int, cache: Path, jobs: int
-           ) -> list[tuple[str, SyntheticScene]]:
-    """Return (label, matched scene) of the train-split scenes (cached after the first run)."""
-    path = cache / f'rig_tuning_{SPLIT}_{per_type}_{stride}.pickle'
+def scenes(split: str, per_type: int, stride: int, cache: Path, jobs: int,
+           oversampling: int = 1) -> list[tuple[str, SyntheticScene]]:
+    """Return (label, matched scene) of the split's scenes (cached after the first run)."""
+    if split not in SPLITS:
+        raise ValueError(f'split {split!r}: tuning reads only {", ".join(SPLITS)}')
+    rendering = f'_oversampled{oversampling}' if oversampling > 1 else ''
+    path = cache / f'rig_tuning_{split}_{per_type}_{stride}{rendering}.pickle'
     if path.exists():
         loaded: list[tuple[str, SyntheticScene]] = pickle.loads(path.read_bytes())
         return loaded
-    plan = split_plan(SPLIT, per_type)
+    plan = split_plan(split, per_type)
     result = [(f'seed {item.scene.seed} rig {item.scene.rig.index} '
                f'top {item.scene.top_width_px:.0f} px {item.scene.scene.object_texture_family}',
-               item.matched[stride]) for item in match_plan(plan, (stride,), jobs=jobs)]
+               item.matched[stride])
+              for item in match_plan(plan, (stride,), jobs=jobs, oversampling=oversampling)]
     cache.mkdir(parents=True, exist_ok=True)
     path.write_bytes(pickle.dumps(result))
     return result
@@ -102,7 +110,7 @@ def decompose(matched: list[tuple[str, SyntheticScene]], config: AreaConfig,
     errors = np.array(rows)
     names = ('area pixels at the true height', 'true pixels at the area height',
              'area height - true height (|dz|)', 'true pixels at the true height')
-    print(f'{len(errors)} train scenes; no area or no true pixel counts as a miss')
+    print(f'{len(errors)} scenes; no area or no true pixel counts as a miss')
     for name, column in zip(names, errors.T, strict=True):
         within = 100.0 * float(np.sum(column[np.isfinite(column)] <= tolerance_mm)) / len(column)
         print(f'  {name:34s} within {tolerance_mm:g} mm {within:5.1f} %, median '
@@ -112,7 +120,11 @@ def decompose(matched: list[tuple[str, SyntheticScene]], config: AreaConfig,
 def main() -> None:
     """Grade the selectors on the cached train-split scenes and list the failures."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--per-type', type=int, default=15, help='train scenes per type')
+    parser.add_argument('--per-type', type=int, default=15, help='scenes per type')
+    parser.add_argument('--split', default='train', choices=SPLITS,
+                        help='train (tune here) or validation (check here)')
+    parser.add_argument('--oversampling', type=int, default=1, choices=(1, 3, 5),
+                        help='render each pixel as the mean of K x K (antialiased)')
     parser.add_argument('--point-stride', type=int, default=1)
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--tolerance-mm', type=float, default=3.0)
@@ -123,7 +135,8 @@ def main() -> None:
     parser.add_argument('--area', action='append', default=[], metavar='NAME=VALUE',
                         help='an AreaConfig value other than its default (float)')
     args = parser.parse_args()
-    matched = scenes(args.per_type, args.point_stride, Path(args.cache), args.jobs)
+    matched = scenes(args.split, args.per_type, args.point_stride, Path(args.cache), args.jobs,
+                     args.oversampling)
     config = replace(AreaConfig(), **{item.partition('=')[0]: float(item.partition('=')[2])
                                       for item in args.area})
     if args.decompose:
@@ -148,7 +161,8 @@ def main() -> None:
         median_abs = np.nanmedian(np.abs(offsets), axis=0)
         print(f'{name}: median |dx|, |dy|, |dz| {median_abs[0]:.2f}, {median_abs[1]:.2f}, '
               f'{median_abs[2]:.2f} mm')
-        print(f'{name}: {len(errors)} train scenes, within {args.tolerance_mm:g} mm {within:.0f} %'
+        print(f'{name}: {len(errors)} {args.split} scenes, within {args.tolerance_mm:g} mm '
+              f'{within:.0f} %'
               f', mean {np.mean(errors[decided]):.2f} mm, max {np.max(errors[decided]):.1f} mm,'
               f' {int(np.sum(~decided))} without a point')
         if name != 'centroid':
