@@ -16,6 +16,7 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
 )
 from stereo_fuzzy_perception.core.best_point.face_outline import (
     _on_top_plane,
+    _plain_region,
     face_from_image,
     plain_face_from_image,
 )
@@ -168,6 +169,24 @@ def test_a_face_in_pieces_whose_image_region_leaks_into_the_table_stays_refused(
     decision = decide(points, left, right)
     assert decision.status == UNCERTAIN_TOP, decision.status
     assert decision.best_point_world is None
+
+
+def test_a_plain_face_holds_the_matches_within_a_windows_radius_of_its_pixels():
+    # A plain square 20 px across; 10 matches on it and 12 on a line 3 px below its edge, where
+    # a window straddling the rim put them: most of the matches are the face's.
+    plain = np.zeros((60, 60), dtype=bool)
+    plain[20:40, 20:40] = True
+    inside_rows, inside_columns = np.full(10, 30), np.arange(22, 32)
+    rows = np.concatenate([inside_rows, np.full(12, 42)])
+    columns = np.concatenate([inside_columns, np.arange(24, 36)])
+    hull = _plain_region(plain, rows, columns, reach=4)
+    assert hull is not None
+    assert (hull.min(axis=0).tolist(), hull.max(axis=0).tolist()) == ([20, 20], [39, 39])
+    # counted only on the face's own pixels, 10 of 22 matches are not most of them
+    assert _plain_region(plain, rows, columns, reach=0) is None
+    # nor are they when the line lies beyond the window's radius
+    far = np.concatenate([inside_rows, np.full(12, 46)])
+    assert _plain_region(plain, far, columns, reach=4) is None
 
 
 def plain_face(image=None, max_across_m=DEFAULTS.max_object_across_m):

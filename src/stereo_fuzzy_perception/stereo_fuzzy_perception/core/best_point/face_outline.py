@@ -27,7 +27,9 @@ edge: its matches are arcs that fill little of their outline, and correlation_ar
 it as a face in pieces. The image shows such a face whole, as one region of nearly constant
 intensity around those matches, bounded by the table's texture or the rim's shading.
 plain_face_from_image takes that region as the face, when it is one convex region, closed
-within the image, holding most of the matches, and of an object's size on the top plane;
+within the image, holding most of the matches (within the window's radius of it: a match
+whose window straddles the rim sits outside the plain pixels), and of an object's size on the
+top plane;
 otherwise the refusal stands. ROS-free: numpy, scipy and OpenCV.
 """
 
@@ -78,7 +80,8 @@ PLAIN_OPENING_PX = 2
 """Radius of the opening that cuts a plain region's thin bridges into the table [px]."""
 
 PLAIN_SEED_SHARE = 0.5
-"""A plain face holds at least this share of its matches (the rest sit on the rim's edge)."""
+"""A plain face holds at least this share of its matches, within the window's radius (the rest
+sit on the rim's edge)."""
 
 PLAIN_CONVEXITY = 0.85
 """A plain face covers at least this share of its convex hull (the objects' tops are
@@ -177,7 +180,7 @@ def plain_face_from_image(face: CorrelationArea, image: RectifiedImage,
     for level, spread in _plain_levels(crop, rows - low[1], columns - low[0]):
         tolerance = max(PLAIN_TOLERANCE_SIGMAS * spread, PLAIN_TOLERANCE_GREY * grey_level)
         hull = _plain_region(np.abs(crop - level) <= tolerance, rows - low[1],
-                             columns - low[0])
+                             columns - low[0], image.window_size // 2)
         if hull is not None:
             break
     if hull is None:
@@ -212,7 +215,7 @@ def _plain_levels(crop: np.ndarray, rows: np.ndarray, columns: np.ndarray
             (everything, MAD_TO_SIGMA * float(np.median(np.abs(seeds - everything))))]
 
 
-def _plain_region(plain: np.ndarray, rows: np.ndarray, columns: np.ndarray
+def _plain_region(plain: np.ndarray, rows: np.ndarray, columns: np.ndarray, reach: int
                   ) -> np.ndarray | None:
     """Return the hull (K, 2) of the plain pixels' region around the matches, or None.
 
@@ -220,13 +223,19 @@ def _plain_region(plain: np.ndarray, rows: np.ndarray, columns: np.ndarray
         plain: Which pixels of the crop are of the face's grey.
         rows: The matches' rows in the crop.
         columns: Their columns.
+        reach: The correlation window's radius [px]: a match whose window straddles the rim
+            sits up to this far outside the face's plain pixels and still belongs to it.
     """
     # Opening cuts the thin bridges through which the region would leak into table texture
     # of the same grey.
     opened = cv2.morphologyEx(plain.astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(
         cv2.MORPH_ELLIPSE, (2 * PLAIN_OPENING_PX + 1, 2 * PLAIN_OPENING_PX + 1)))
     count, labels, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=4)
-    held = np.bincount(labels[rows, columns], minlength=count)
+    # Each match goes to the region within `reach` of it (the nearest region's pixel).
+    distance, (near_rows, near_columns) = ndimage.distance_transform_edt(
+        labels == 0, return_indices=True)
+    seeded = np.where(distance <= reach, labels[near_rows, near_columns], 0)
+    held = np.bincount(seeded[rows, columns], minlength=count)
     held[0] = 0
     region = int(np.argmax(held))
     if region == 0 or held[region] < PLAIN_SEED_SHARE * len(columns):
