@@ -81,35 +81,6 @@ def test_without_the_area_test_only_the_median_counts():
         assert found.label == 0, f'area test off ({square_points}, {area_top_sigmas})'
 
 
-def tall_region_with_its_foot(top_points: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return (labels, heights, sigmas) of one region: 400 surface points around an object's
-    foot (0 +- 1 mm) and `top_points` on a rim 30 mm high (+- 1 mm), 1 mm of noise each."""
-    rng = np.random.default_rng(7)
-    heights = np.concatenate([rng.normal(0.0, 0.001, 400), rng.normal(0.03, 0.001, top_points)])
-    return np.ones(len(heights), dtype=int), heights, np.full(len(heights), 0.001)
-
-
-@pytest.mark.parametrize('top_points', [60, 200])
-def test_a_tall_object_whose_region_took_in_the_surface_at_its_foot_is_found(top_points):
-    labels, heights, sigmas = tall_region_with_its_foot(top_points)
-    # averaged, the region stands 20 sigmas out; its densest heights are the surface's
-    found = choose_object(labels, 1, np.full(len(labels), 20.0), heights, sigmas, 5.0, 2.0, 5)
-    assert found.label == 1, 'expected the tall object found by its points off the surface'
-    assert found.top_m == pytest.approx(0.03, abs=0.001)
-
-
-def test_the_second_look_at_a_top_needs_a_region_high_on_its_own_and_enough_points_off_it():
-    labels, heights, sigmas = tall_region_with_its_foot(60)
-    # found by the area test only (median 3.4 sigmas over many squares): no second look
-    by_area = choose_object(labels, 1, np.full(len(labels), 3.4), heights, sigmas, 5.0, 2.0, 5,
-                            SQUARE_POINTS, 3.0)
-    assert by_area.label == 0
-    # high on its own, but 20 of 420 points off the surface: too few to show a top
-    labels, heights, sigmas = tall_region_with_its_foot(20)
-    few = choose_object(labels, 1, np.full(len(labels), 20.0), heights, sigmas, 5.0, 2.0, 5)
-    assert few.label == 0
-
-
 @settings(max_examples=30, deadline=None)
 @given(rig=st.sampled_from(sorted(RIGS)), stride=st.sampled_from([1, 3]),
        noise_px=st.floats(0.03, 0.8), seed=st.integers(0, 2 ** 31 - 1))

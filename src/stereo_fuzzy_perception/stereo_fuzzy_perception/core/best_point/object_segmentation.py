@@ -39,16 +39,6 @@ TOP_DENSE_SHARE = 0.25
 TOP_WINDOW_SIGMAS = 2.0
 """The top height is the median of the heights within this many sigmas of the dense top bin."""
 
-OFF_SURFACE_SIGMAS = 3.0
-"""A region's point stands off the surface when it is this many sigmas of its own noise high
-(choose_object's second look at a tall object's top)."""
-
-OFF_SURFACE_SHARE = 0.1
-"""... and that second look needs this share of the region's points standing off it."""
-
-MIN_OFF_SURFACE_POINTS = 10
-"""... and at least this many of them."""
-
 MAX_GRID_CELLS = 4_000_000
 """Largest image grid the regions are found on (a 2000 x 2000 image at point_stride 1)."""
 
@@ -297,10 +287,8 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
     n = points / square_points averaging squares (at least 1) whose median z is below
     object_sigmas is an object when median z * sqrt(n) is object_sigmas and its top stands
     area_top_sigmas above the surface: the averages over n squares are n independent
-    samples of the noise, their median scatters sqrt(n) times less. A region that stands
-    object_sigmas out of the surface but fails the top test gets a second look, at its points
-    standing off the surface only (_top_off_surface). Of several objects the one with the most
-    points.
+    samples of the noise, their median scatters sqrt(n) times less. Of several objects the
+    one with the most points.
 
     Args:
         labels: (N,) region of every point (0: none).
@@ -340,30 +328,12 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
         region = labels == label
         top = top_height(heights[region], sigmas[region])
         least = top_sigmas if high[label] else max(top_sigmas, area_top_sigmas)
-        noise = float(np.median(sigmas[region]))
-        if top < least * noise and high[label]:
-            raised = _top_off_surface(heights[region], sigmas[region])
-            top = raised if raised > top else top  # NaN (too few points off it): unchanged
-        if top >= least * noise:
+        if top >= least * float(np.median(sigmas[region])):
             objects.append((int(sizes[label]), label, top))
     if not objects:
         return ObjectRegion(0, count, 0, float(medians[largest]), int(sizes[largest]))
     size, chosen, top = max(objects)
     return ObjectRegion(chosen, count, len(objects), float(medians[chosen]), size, top)
-
-
-def _top_off_surface(heights: np.ndarray, sigmas: np.ndarray) -> float:
-    """Return the top height [m] of a region's points standing off the surface (NaN: too few).
-
-    A tall object stands out of the surface by far more than object_sigmas, and its averaged
-    heights reach over the surface around its foot: those surface points join its region and
-    can outnumber a plain top matched only along its rim, so that the densest heights, which
-    top_height takes, are the surface's. Its points that stand off the surface show the top.
-    """
-    off = heights > OFF_SURFACE_SIGMAS * sigmas
-    if np.count_nonzero(off) < max(MIN_OFF_SURFACE_POINTS, OFF_SURFACE_SHARE * len(heights)):
-        return math.nan
-    return top_height(heights[off], sigmas[off])
 
 
 def top_height(heights: np.ndarray, sigmas: np.ndarray) -> float:
