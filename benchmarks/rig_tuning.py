@@ -11,6 +11,17 @@ fuzzy_fitted selectors with the AreaConfig defaults; per scene it lists the erro
 point was chosen (the correlation area's status and reason), worst first. --oversampling 3
 renders the images antialiased (SceneRenderer.render), as rig_generalisation_benchmark.py can.
 
+A change chosen on some scenes is checked on others: `--from-scene K` grades only each type's
+scenes K and later (with --per-type above K: the cache of the larger set holds the smaller
+one's scenes first). `--save FILE` keeps the fuzzy_fitted outcome of every scene (JSON), and
+`--against FILE` lists the scenes whose outcome changed since (within --tolerance-mm, within
+10 mm, over 10 mm, no point) with the counts of both: a change that moves a dozen scenes each
+way for a net gain of two is noise, which the totals alone do not show.
+
+    nice python benchmarks/rig_tuning.py --per-type 50 --from-scene 20 --save /tmp/before.json
+    # ... change the code ...
+    nice python benchmarks/rig_tuning.py --per-type 50 --from-scene 20 --against /tmp/before.json
+
 `--decompose` tells where the error comes from. The matched pixels whose rays meet the true
 top face ("true pixels") and the correlation area's pixels ("area pixels") are each cut with a
 plane (the true top height, or the area's) and their centroid graded: area pixels at the true
@@ -26,6 +37,8 @@ height costs, true pixels at the true height what is left to the matcher's cover
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import os
 import pickle
 import sys
@@ -48,7 +61,10 @@ from stereo_fuzzy_perception.core.best_point.point_selectors import (  # noqa: E
 )
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
 from stereo_fuzzy_perception.simulation.distribution_source import match_plan  # noqa: E402
-from stereo_fuzzy_perception.simulation.scene_distribution import split_plan  # noqa: E402
+from stereo_fuzzy_perception.simulation.scene_distribution import (  # noqa: E402
+    OBJECT_TYPES,
+    split_plan,
+)
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene  # noqa: E402
 
 SPLITS = ('train', 'validation')
@@ -73,6 +89,36 @@ def scenes(split: str, per_type: int, stride: int, cache: Path, jobs: int,
     cache.mkdir(parents=True, exist_ok=True)
     path.write_bytes(pickle.dumps(result))
     return result
+
+
+def outcome(error_mm: float | None, tolerance_mm: float) -> str:
+    """Return the class of one scene's result: 'within', '<= 10 mm', '> 10 mm' or 'no point'."""
+    if error_mm is None or math.isnan(error_mm):
+        return 'no point'
+    if error_mm <= tolerance_mm:
+        return 'within'
+    return '<= 10 mm' if error_mm <= 10.0 else '> 10 mm'
+
+
+def outcome_counts(errors: dict[str, float | None], tolerance_mm: float) -> str:
+    """Return the counts of the four outcome classes of {label: error [mm] or None}."""
+    classes = [outcome(error, tolerance_mm) for error in errors.values()]
+    return ', '.join(f'{name} {classes.count(name)}'
+                     for name in ('within', '<= 10 mm', '> 10 mm', 'no point'))
+
+
+def changed_outcomes(before: dict[str, float | None], after: dict[str, float | None],
+                     tolerance_mm: float) -> list[str]:
+    """Return a line per scene of both runs whose outcome class changed, or whose error moved
+    by more than 1 mm."""
+    lines = []
+    for label in sorted(set(before) & set(after)):
+        old, new = before[label], after[label]
+        moved = old is not None and new is not None and abs(old - new) > 1.0
+        if outcome(old, tolerance_mm) != outcome(new, tolerance_mm) or moved:
+            shown = ['   none' if error is None else f'{error:7.1f}' for error in (old, new)]
+            lines.append(f'  {label}: {shown[0]} -> {shown[1]} mm')
+    return lines
 
 
 def on_plane(world: np.ndarray, centre: np.ndarray, height: float) -> np.ndarray:
@@ -134,9 +180,16 @@ def main() -> None:
                         help='where the error comes from (module docstring)')
     parser.add_argument('--area', action='append', default=[], metavar='NAME=VALUE',
                         help='an AreaConfig value other than its default (float)')
+    parser.add_argument('--from-scene', type=int, default=0, metavar='K',
+                        help="grade only each type's scenes K and later (not chosen on)")
+    parser.add_argument('--save', metavar='FILE', help="write each scene's fuzzy_fitted error")
+    parser.add_argument('--against', metavar='FILE',
+                        help='list the scenes whose outcome changed since a --save')
     args = parser.parse_args()
+    if not 0 <= args.from_scene < args.per_type:
+        parser.error(f'--from-scene {args.from_scene} must be in 0..{args.per_type - 1}')
     matched = scenes(args.split, args.per_type, args.point_stride, Path(args.cache), args.jobs,
-                     args.oversampling)
+                     args.oversampling)[args.from_scene * len(OBJECT_TYPES):]
     config = replace(AreaConfig(), **{item.partition('=')[0]: float(item.partition('=')[2])
                                       for item in args.area})
     if args.decompose:
@@ -165,6 +218,8 @@ def main() -> None:
               f'{within:.0f} %'
               f', mean {np.mean(errors[decided]):.2f} mm, max {np.max(errors[decided]):.1f} mm,'
               f' {int(np.sum(~decided))} without a point')
+        if name == 'fuzzy_fitted':
+            compare(rows, args)
         if name != 'centroid':
             continue
         rows.sort(key=lambda row: -np.inf if np.isnan(row[0]) else -row[0])
@@ -172,6 +227,20 @@ def main() -> None:
             print(f'  {error:7.1f} mm ({offset[0]:6.1f} {offset[1]:6.1f} {offset[2]:6.1f}) '
                   f'{scene.object_type:16s} {label} '
                   f'{decision.status}: {decision.reason[:160]}')
+
+
+def compare(rows: list, args: argparse.Namespace) -> None:
+    """Save the scenes' errors (--save) and list what changed since a saved run (--against)."""
+    errors = {row[1]: (None if math.isnan(row[0]) else row[0]) for row in rows}
+    if args.against:
+        before = json.loads(Path(args.against).read_text())
+        print(f'changed since {args.against}:')
+        print('\n'.join(changed_outcomes(before, errors, args.tolerance_mm)) or '  none')
+        shared = set(before) & set(errors)
+        print(f'  before: {outcome_counts({k: before[k] for k in shared}, args.tolerance_mm)}')
+        print(f'  now:    {outcome_counts({k: errors[k] for k in shared}, args.tolerance_mm)}')
+    if args.save:
+        Path(args.save).write_text(json.dumps(errors, indent=0))
 
 
 if __name__ == '__main__':

@@ -1,0 +1,30 @@
+"""benchmarks/rig_tuning.py's comparison of two runs scene by scene (--save, --against)."""
+
+import math
+
+import pytest
+
+from benchmarks.rig_tuning import changed_outcomes, outcome, outcome_counts
+
+
+@pytest.mark.parametrize(('error', 'expected'), [
+    (None, 'no point'), (math.nan, 'no point'), (0.4, 'within'), (3.0, 'within'),
+    (3.01, '<= 10 mm'), (10.0, '<= 10 mm'), (10.5, '> 10 mm')])
+def test_each_scene_falls_in_one_outcome(error, expected):
+    assert outcome(error, 3.0) == expected
+
+
+def test_the_changes_are_listed_scene_by_scene_and_the_totals_of_both_runs_kept():
+    before = {'a': 1.0, 'b': None, 'c': 2.0, 'd': 12.0, 'only before': 1.0}
+    after = {'a': 1.2, 'b': 2.5, 'c': 3.5, 'd': 9.0, 'only after': None}
+    lines = changed_outcomes(before, after, 3.0)
+    # 'a' moved 0.2 mm within its class: not a change; the rest changed class
+    assert [line.split(':')[0].strip() for line in lines] == ['b', 'c', 'd']
+    assert 'none ->     2.5' in lines[0]
+    assert outcome_counts(before, 3.0) == 'within 3, <= 10 mm 0, > 10 mm 1, no point 1'
+    assert outcome_counts(after, 3.0) == 'within 2, <= 10 mm 2, > 10 mm 0, no point 1'
+
+
+def test_a_move_of_more_than_a_millimetre_within_a_class_is_listed():
+    assert changed_outcomes({'a': 0.5}, {'a': 2.0}, 3.0) == ['  a:     0.5 ->     2.0 mm']
+    assert changed_outcomes({'a': None}, {'a': None}, 3.0) == []
