@@ -164,7 +164,7 @@ def decompose(matched: list[tuple[str, SyntheticScene]], config: AreaConfig,
 
 
 def main() -> None:
-    """Grade the selectors on the cached train-split scenes and list the failures."""
+    """Grade the selectors on the cached scenes of the split and list the failures."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--per-type', type=int, default=15, help='scenes per type')
     parser.add_argument('--split', default='train', choices=SPLITS,

@@ -384,6 +384,7 @@ class SceneRenderer:
 
 
 def _check_oversampling(oversampling: int) -> None:
+    """Raise RenderError unless `oversampling` is an odd factor >= 1 (a block has a centre)."""
     if oversampling < 1 or oversampling % 2 == 0:
         raise RenderError(f'oversampling must be an odd factor >= 1, got {oversampling}')
 
