@@ -24,7 +24,7 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     hull_fill,
     width_m,
 )
-from stereo_fuzzy_perception.core.best_point.work_surface import SURFACE_MEASURED
+from stereo_fuzzy_perception.core.best_point.work_surface import SURFACE_MEASURED, SURFACE_PLAIN
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 from stereo_fuzzy_perception.simulation.synthetic_scenes import GeometricSceneSource
@@ -367,3 +367,48 @@ def test_a_bad_min_object_across_is_refused(changes, message):
     with pytest.raises(CorrelationAreaError, match=message):
         find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT, AreaConfig(**changes))
 
+
+
+@pytest.mark.parametrize('stride', [1, 3])
+def test_a_plain_table_matched_on_noise_leaves_the_object_its_confident_matches(stride):
+    # A plain table's windows hold sensor noise: each is matched anywhere along the search
+    # range, with a low score. The plane fitted to those heights and their scatter would hide
+    # the box; its own matches, confident, show it above the surface the rig pose gives.
+    box = Box((0.2, 0.15), 0.05, 0.03)
+    points, left, right = grid_matches(RIG, box, 0.1, stride)
+    world = (points.xyz @ WORLD_FROM_LEFT[:3, :3].T) + WORLD_FROM_LEFT[:3, 3]
+    table = np.flatnonzero(world[:, 2] < 0.01)
+    rng = np.random.default_rng(stride)
+    lifted_along_rays(points, table, rng.uniform(-0.02, 0.08, len(table)))
+    on_box = world[:, 2] >= 0.01
+    points.score[table] = rng.uniform(0.25, 0.45, len(table))
+    points.score[on_box] = rng.uniform(0.6, 1.0, int(on_box.sum()))
+    shift = float(left.P[0, 2] - right.P[0, 2])
+    area = find_correlation_area(points, WORLD_FROM_LEFT, AreaConfig(), shift)
+    assert area.status == STATUS_OK, area.reason
+    assert area.surface.source == SURFACE_PLAIN
+    assert area.top_height == pytest.approx(0.03, abs=0.001)
+    centre = np.average(area.xyz_world[:, :2], axis=0, weights=area.point_weights())
+    assert np.hypot(*(centre - box.centre_xy)) < 0.002
+    every_match = find_correlation_area(points, WORLD_FROM_LEFT,
+                                        AreaConfig(min_surface_score=0.0), shift)
+    assert every_match.surface.source != SURFACE_PLAIN
+    assert not every_match.ok or abs(every_match.top_height - 0.03) > 0.001
+
+
+def test_a_textured_table_is_measured_whatever_some_matches_score():
+    box = Box((0.2, 0.15), 0.05, 0.03)
+    points, left, right = grid_matches(RIG, box, 0.1, 1)
+    points.score[::3] = 0.3  # a third of the matches weak: the median is still confident
+    area = find_correlation_area(points, WORLD_FROM_LEFT, AreaConfig(),
+                                 float(left.P[0, 2] - right.P[0, 2]))
+    assert area.status == STATUS_OK, area.reason
+    assert area.surface.source == SURFACE_MEASURED
+    assert area.points_used > 0 and np.any(area.score == 0.3), 'expected every match used'
+
+
+@pytest.mark.parametrize('value', [-0.1, 1.0, math.nan])
+def test_a_bad_min_surface_score_is_refused(value):
+    with pytest.raises(CorrelationAreaError, match='min_surface_score=.* must be in'):
+        find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT,
+                              AreaConfig(min_surface_score=value))

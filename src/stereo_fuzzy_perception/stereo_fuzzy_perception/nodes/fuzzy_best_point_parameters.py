@@ -90,6 +90,11 @@ class FuzzyBestPointSettings:
         'from the matches alone: the matches place the rim only to within half a correlation '
         'window; and take a face in pieces (min_top_fill) whole when the image shows it as one '
         'plain region around its matches (a low-texture top matched only at its rim)')
+    min_surface_score: float = parameter(
+        _AREA.min_surface_score, 'When the matches near the work surface score below this '
+        '(median correlation score), the surface is plain and matched on sensor noise: only the '
+        'matches scoring this are used, and the surface is z = 0 of world as the rig pose puts '
+        "it (surface_source 'plain'); 0 = never", 0.0, 0.99)
     # --- rig pose: a pose file (static_transform_publisher form), /tf_static, or the chapter's
     # alpha, theta, z0 (+ x0, y0, vergence) converted to the same transform (core/rig_pose.py)
     rig_pose_file: str = parameter(
@@ -122,7 +127,8 @@ class FuzzyBestPointSettings:
             min_object_across_m=self.min_object_across_m,
             max_object_height_m=self.max_object_height_m,
             max_top_spread_m=self.max_top_spread_m, min_top_fill=self.min_top_fill,
-            outline_from_image=self.outline_from_image)
+            outline_from_image=self.outline_from_image,
+            min_surface_score=self.min_surface_score)
 
     def problem(self) -> str | None:
         """Return why the correlation area settings cannot work, or None."""

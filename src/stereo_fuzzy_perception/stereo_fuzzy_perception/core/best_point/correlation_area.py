@@ -40,6 +40,7 @@ from stereo_fuzzy_perception.core.best_point.work_surface import (
     INLIER_SIGMAS,
     MAD_SCALE,
     SURFACE_ASSUMED,
+    SURFACE_PLAIN,
     SurfacePlane,
     fit_work_surface,
     height_per_disparity,
@@ -144,6 +145,11 @@ class AreaConfig:
             matches alone; and a face refused as in pieces (min_top_fill) is taken after all
             when the image shows it as one plain region around its matches
             (face_outline.plain_face_from_image).
+        min_surface_score: When the matches near the work surface score below this (their
+            median correlation score), the surface is plain: its windows hold sensor noise,
+            matched anywhere along the search range. Then only the matches scoring at least
+            this are used, and the surface is where the rig pose puts it (z = 0, source
+            'plain', noise assumed_disparity_sigma_px); 0 turns this off.
     """
 
     workspace_min: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -164,6 +170,7 @@ class AreaConfig:
     max_top_spread_m: float = 0.002
     min_top_fill: float = 0.5
     outline_from_image: bool = True
+    min_surface_score: float = 0.5
 
     def problem(self) -> str | None:
         """Return why this configuration is unusable, or None."""
@@ -181,6 +188,8 @@ class AreaConfig:
                      'min_object_across_m'):
             if not getattr(self, name) >= 0.0:
                 return f'{name}={getattr(self, name)} must not be negative'
+        if not 0.0 <= self.min_surface_score < 1.0:
+            return f'min_surface_score={self.min_surface_score} must be in [0, 1)'
         if not self.min_object_across_m < self.max_object_across_m:
             return (f'min_object_across_m={self.min_object_across_m} must be below '
                     f'max_object_across_m={self.max_object_across_m}')
@@ -370,6 +379,24 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
         world, height_per_disparity(world, camera_centre, disparity, np.array([0.0, 0.0, 1.0])),
         config.surface_search_m, config.min_disparity_sigma_px,
         config.assumed_disparity_sigma_px)
+    near_surface = np.abs(world[2]) <= config.surface_search_m
+    if config.min_surface_score and np.any(near_surface) and (
+            float(np.median(score[near_surface])) < config.min_surface_score):
+        # A plain surface: its windows hold sensor noise, matched anywhere along the search
+        # range, and the plane fitted to them is wherever that noise put it. Only the
+        # confident matches say where anything is, and the surface is where the rig pose
+        # puts it.
+        confident = score >= config.min_surface_score
+        world, selected = world[:, confident], selected[confident]
+        u_left, v_left, u_right, score, disparity = (
+            column[confident] for column in (u_left, v_left, u_right, score, disparity))
+        surface = SurfacePlane(SURFACE_PLAIN, 0.0, 0.0, 0.0, max(
+            config.assumed_disparity_sigma_px, config.min_disparity_sigma_px), 0)
+        if not len(selected):
+            return refused(NO_POINTS, f'the work surface is plain (its matches score below '
+                                      f'min_surface_score={config.min_surface_score:g}) and '
+                                      'no match in the workspace box scores that',
+                           surface)
     per_px = height_per_disparity(world, camera_centre, disparity, surface.normal)
     sigma = surface.disparity_sigma_px * per_px
     heights = surface.heights(world)

@@ -28,6 +28,8 @@ import numpy as np
 
 SURFACE_MEASURED = 'measured'
 SURFACE_ASSUMED = 'assumed'
+SURFACE_PLAIN = 'plain'
+"""The surface's matches are sensor noise (a plain surface): the plane is assumed, z = 0."""
 
 HYPOTHESES = 60
 """Random 3-point planes tried by the least-quantile search."""
@@ -67,7 +69,8 @@ class SurfacePlane:
     """The work surface, z = slope_x x + slope_y y + offset in `world`, and the pair's noise.
 
     Attributes:
-        source: SURFACE_MEASURED, or SURFACE_ASSUMED when too few points showed it.
+        source: SURFACE_MEASURED, SURFACE_ASSUMED when too few points showed it, or
+            SURFACE_PLAIN when its matches were sensor noise (correlation_area.py).
         slope_x: dz/dx [-].
         slope_y: dz/dy [-].
         offset_m: z of the plane at x = y = 0 [m].
