@@ -39,7 +39,10 @@ def harness(ros_context):
 
 
 def test_known_shift_gives_points_at_f_b_over_d(harness):
-    from stereo_fuzzy_perception.nodes.conversions import cloud_to_matched_points
+    from stereo_fuzzy_perception.nodes.conversions import (
+        cloud_to_matched_points,
+        stereo_matches_image,
+    )
 
     rig = harness(window_size=9, disparity_range=32)
     rig.publish_and_wait_processed(stereo_pair(stamp_sec=7))
@@ -58,6 +61,17 @@ def test_known_shift_gives_points_at_f_b_over_d(harness):
     expected_x = (points.u_left - WIDTH / 2) * points.xyz[:, 2] / FOCAL
     assert np.allclose(points.xyz[:, 0], expected_x, atol=1e-4)
     assert np.mean(np.abs(points.u_left - points.u_right - SHIFT) < 0.5) > 0.98
+    # both rectified images the matcher read come along (the fuzzy stage's outline and a
+    # plain top's height): the right one is the left one SHIFT columns to the left
+    left_image = stereo_matches_image(message)
+    right_image = stereo_matches_image(message, 'right')
+    assert left_image is not None and right_image is not None
+    assert left_image.pixels.shape == right_image.pixels.shape == (HEIGHT, WIDTH)
+    assert left_image.window_size == right_image.window_size == 9
+    inner = slice(SHIFT + 10, WIDTH - 10)
+    left_part = left_image.pixels[20:-20, inner].astype(int)
+    right_part = right_image.pixels[20:-20, 10:WIDTH - 10 - SHIFT].astype(int)
+    assert np.mean(np.abs(left_part - right_part) <= 2) > 0.95
 
 
 @pytest.mark.parametrize(('bad', 'reason', 'words'), [

@@ -169,18 +169,24 @@ def test_malformed_input_is_reported_and_the_node_keeps_going(harness):
     colour.left_rectified_roi.width = colour.left_rectified_roi.height = 2
     run.send(colour, 3)
     assert run.decisions[2].status.startswith("malformed_input: left_rectified: encoding 'rgb8'")
-    run.send(matches_message(scene, stamp_sec=8), 4)
+    mislabelled = matches_message(scene, stamp_sec=8)
+    mislabelled.right_rectified = Image(height=2, width=3, encoding='mono8', step=3,
+                                        data=b'\0' * 6)
+    run.send(mislabelled, 4)
+    assert run.decisions[3].status.startswith(
+        'malformed_input: right_rectified is 3x2 but right_rectified_roi says 0x0')
+    run.send(matches_message(scene, stamp_sec=9), 5)
     wait_until(lambda: run.points, TIMEOUT, 'a best point after bad inputs', run.executor)
-    assert [p.header.stamp.sec for p in run.points] == [8]
+    assert [p.header.stamp.sec for p in run.points] == [9]
 
     def counted():
         if not run.diagnostics:
             return False
         values = {kv.key: kv.value for kv in run.diagnostics[-1].status[0].values}
         return values.get('decisions made') == '1' and values.get(
-            'refused malformed_input') == '3'
+            'refused malformed_input') == '4'
 
-    wait_until(counted, TIMEOUT, 'diagnostics counting 1 made and 3 malformed', run.executor)
+    wait_until(counted, TIMEOUT, 'diagnostics counting 1 made and 4 malformed', run.executor)
     assert run.diagnostics[-1].status[0].hardware_id == 'fuzzy_best_point_node', (
         'hardware_id names the node (it drives no device)')
 

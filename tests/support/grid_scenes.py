@@ -104,3 +104,51 @@ def grid_matches(rig: StereoRig, box: Box | None, noise_px: float, stride: int =
 def camera_distance(rig: StereoRig) -> float:
     """Return the distance [m] from the rig to the surface along its optical axis."""
     return rig.z0_m / math.cos(math.radians(rig.alpha_deg))
+
+
+def plain_box_pair(rig: StereoRig, box: Box, top_grey: float = 140.0, wall_grey: float = 70.0,
+                   noise_grey: float = 1.5, seed: int = 0, fov_deg: float = 45.0,
+                   right_gain: float = 1.0, right_offset: float = 0.0
+                   ) -> tuple[RectifiedImage, RectifiedImage, CameraCalibration,
+                              CameraCalibration, np.ndarray]:
+    """Return both rectified images of a plain-topped box on a textured table, ray-cast.
+
+    The table's texture is fixed on the table (a smooth random field in world x, y, 1 mm
+    cells), so both cameras see the same texture where it lies; the top is `top_grey` and its
+    walls `wall_grey`, both with sensor noise only; the right camera has its own gain and
+    offset. Returns (left image, right image, left and right rectified calibrations, the top's
+    outline (K, 2) in the left image [px]).
+    """
+    left, right = rectified_calibration(rig, default_camera_matrix(vertical_fov_deg=fov_deg))
+    focal, cx, cy = left.P[0, 0], left.P[0, 2], left.P[1, 2]
+    baseline = -right.P[0, 3] / focal
+    pose = rig.world_from_left_camera()
+    to_world = pose[:3, :3] @ np.asarray(left.R).T  # rectified frame -> world (both cameras)
+    rng = np.random.default_rng(seed)
+    cells = ndimage.gaussian_filter(rng.normal(size=(1000, 1000)), 1.5)
+    cells *= 30.0 / float(cells.std())
+    rows, columns = np.mgrid[0:left.height, 0:left.width].astype(float)
+    rays = np.stack([(columns - cx) / focal, (rows - cy) / focal, np.ones_like(columns)],
+                    axis=-1) @ to_world.T
+    images = []
+    for offset_x, gain, offset in ((0.0, 1.0, 0.0), (baseline, right_gain, right_offset)):
+        centre = pose[:3, 3] + to_world @ np.array([offset_x, 0.0, 0.0])
+        with np.errstate(divide='ignore', invalid='ignore'):
+            ground = centre + ((-centre[2]) / rays[..., 2])[..., None] * rays
+            top = centre + ((box.height - centre[2]) / rays[..., 2])[..., None] * rays
+        on_top = box.covers(top[..., 0], top[..., 1])
+        on_wall = ~on_top & box.covers(ground[..., 0], ground[..., 1])
+        table = ndimage.map_coordinates(cells, [(ground[..., 1] + 0.2) * 1000.0,
+                                                (ground[..., 0] + 0.2) * 1000.0],
+                                        order=1, mode='wrap')
+        grey = np.where(on_top, top_grey, np.where(on_wall, wall_grey, 110.0 + table))
+        grey = gain * (grey + rng.normal(0.0, noise_grey, grey.shape)) + offset
+        images.append(RectifiedImage(np.clip(np.round(grey), 0, 255).astype(np.uint8)))
+    half = 0.5 * box.size
+    corners = np.array([[box.centre_xy[0] + dx, box.centre_xy[1] + dy, box.height]
+                        for dx, dy in ((-half, -half), (half, -half), (half, half),
+                                       (-half, half))])
+    camera = (corners - pose[:3, 3]) @ to_world  # world -> rectified left frame
+    outline = np.column_stack([focal * camera[:, 0] / camera[:, 2] + cx,
+                               focal * camera[:, 1] / camera[:, 2] + cy])
+    return images[0], images[1], left, right, outline

@@ -72,7 +72,7 @@ def test_camera_info_round_trip():
         calibration)
 
 
-def _matches_with_image(pixels, x, y):
+def _matches_with_image(pixels, x, y, right=None):
     from std_msgs.msg import Header
     from stereo_fuzzy_perception.core.camera_model import StereoCalibration
     from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
@@ -83,6 +83,8 @@ def _matches_with_image(pixels, x, y):
 
     points = MatchedPoints.empty()
     points.left_image = RectifiedImage(pixels, x, y, 11)
+    if right is not None:
+        points.right_image = RectifiedImage(right, x + 1, y, 11)
     calibration = StereoCalibration(*rectified_calibration(StereoRig(), width=64, height=48))
     return stereo_matches_message(Header(frame_id='left'), calibration, points,
                                   MatcherConfig(window_size=11))
@@ -97,6 +99,31 @@ def test_the_rectified_image_travels_with_the_matches(dtype):
     assert image is not None
     np.testing.assert_array_equal(image.pixels, pixels)
     assert (image.x, image.y, image.window_size) == (5, 7, 11)
+
+
+def test_the_right_rectified_image_travels_with_the_matches_too():
+    from stereo_fuzzy_perception.nodes.conversions import stereo_matches_image
+
+    rng = np.random.default_rng(4)
+    left, right = (rng.integers(0, 255, (20, 30), dtype=np.uint8) for _ in range(2))
+    msg = _matches_with_image(left, 5, 7, right)
+    image = stereo_matches_image(msg, 'right')
+    assert image is not None
+    np.testing.assert_array_equal(image.pixels, right)
+    assert (image.x, image.y, image.window_size) == (6, 7, 11)
+    assert stereo_matches_image(_matches_with_image(left, 5, 7), 'right') is None
+
+
+def test_a_malformed_right_image_is_named_as_the_right_one():
+    from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError
+    from stereo_fuzzy_perception.nodes.conversions import stereo_matches_image
+
+    pixels = np.zeros((20, 30), dtype=np.uint8)
+    msg = _matches_with_image(pixels, 0, 0, pixels)
+    msg.right_rectified_roi.width = 29
+    with pytest.raises(ImageEncodingError, match='right_rectified is 30x20 but .* 29x20'):
+        stereo_matches_image(msg, 'right')
+    assert stereo_matches_image(msg) is not None, 'the left image is still fine'
 
 
 def test_matches_without_an_image_have_none():

@@ -161,6 +161,9 @@ def test_a_top_face_scattered_beyond_its_noise_is_uncertain_not_taken():
     loose = find_correlation_area(spoiled, FAR_RIG.world_from_left_camera(),
                                   AreaConfig(max_top_spread_m=0.0), shift)
     assert loose.status == STATUS_OK, loose.reason
+    # the refused face comes along, for a plain top's height from both images
+    assert refused.scattered_face is not None and refused.face_in_pieces is None
+    np.testing.assert_array_equal(refused.scattered_face.u_left, loose.u_left)
 
 
 def test_a_top_face_in_pieces_is_uncertain_not_taken():

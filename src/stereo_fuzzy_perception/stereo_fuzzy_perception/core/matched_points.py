@@ -9,7 +9,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class RectifiedImage:
-    """The part of the left rectified image that matches were found in.
+    """The part of a rectified image (left or right) that matches were found in.
 
     Attributes:
         pixels: (H, W) grey image, uint8 or uint16.
@@ -37,6 +37,9 @@ class MatchedPoints:
         left_image: The left rectified image the matches were found in (the part the matcher
             read), when it came with them: the fuzzy stage takes the top face's outline from
             it (face_outline.py).
+        right_image: The right rectified image, the part the matcher read, when it came with
+            them: a plain top's height is measured from where its plain region lies in it
+            (plain_face.py).
     """
 
     xyz: np.ndarray
@@ -45,6 +48,7 @@ class MatchedPoints:
     u_right: np.ndarray
     score: np.ndarray
     left_image: RectifiedImage | None = None
+    right_image: RectifiedImage | None = None
 
     def __len__(self) -> int:
         return int(self.xyz.shape[0])
@@ -59,4 +63,5 @@ class MatchedPoints:
     def subset(self, mask: np.ndarray) -> MatchedPoints:
         """Return the points selected by a boolean mask or index array."""
         return MatchedPoints(self.xyz[mask], self.u_left[mask], self.v_left[mask],
-                             self.u_right[mask], self.score[mask], self.left_image)
+                             self.u_right[mask], self.score[mask], self.left_image,
+                             self.right_image)

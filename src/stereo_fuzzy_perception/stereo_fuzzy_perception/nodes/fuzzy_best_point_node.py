@@ -245,6 +245,7 @@ class FuzzyBestPointNode(Node):
         try:
             points = cloud_to_matched_points(msg.points)
             points.left_image = stereo_matches_image(msg)
+            points.right_image = stereo_matches_image(msg, 'right')
             left = camera_info_to_calibration(msg.left_info)
             right = camera_info_to_calibration(msg.right_info)
             problem = StereoCalibration(left, right).problem()

@@ -200,10 +200,12 @@ def match_scene(scene: DistributionScene, strides: Iterable[int] = (1,), ceiling
     result = pipeline.process(left, right, frame.calibration, full_disparity=not single)
     rectified = result.rectified
     disparity_map = result.disparity_map
-    image = result.points.left_image  # the face's outline is taken from it (face_outline.py)
+    # the face's outline is taken from the left image (face_outline.py), a plain top's height
+    # from both (plain_face.py)
     matched = {stride: _synthetic(frame, scene, result.points if single else dataclasses.replace(
         triangulate(disparity_map.disparity, disparity_map.score, rectified, stride),
-        left_image=image), rectified) for stride in strides}
+        left_image=result.points.left_image, right_image=result.points.right_image),
+        rectified) for stride in strides}
     # The ceiling: perfect depth, whose own outline is exact (no image to correct it with).
     perfect = ({stride: _synthetic(frame, scene, perfect_points(frame, rectified, stride),
                                    rectified) for stride in strides} if ceiling else {})

@@ -234,6 +234,10 @@ class CorrelationArea:
             their outline (min_top_fill), the face as its matches give it (status ok): a plain
             top is matched only along its rim, and the image may still show the whole face
             (face_outline.plain_face_from_image). None otherwise.
+        scattered_face: When the area is refused because its heights scatter
+            (max_top_spread_m), the face as its matches give it (status ok): a plain top's
+            matched heights scatter, and both images may still show its height
+            (plain_top_height.py). None otherwise.
     """
 
     status: str
@@ -253,6 +257,7 @@ class CorrelationArea:
     object_height_sigmas: float = math.nan
     outline: str = OUTLINE_MATCHES
     face_in_pieces: CorrelationArea | None = None
+    scattered_face: CorrelationArea | None = None
 
     def point_weights(self) -> np.ndarray:
         """Return the points' weights (ones when none were given)."""
@@ -489,12 +494,6 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     spread = float(np.std(face_heights))
     noise = float(np.median(sigma[band]))
     excess = math.sqrt(max(0.0, spread ** 2 - noise ** 2))
-    if config.max_top_spread_m and excess > config.max_top_spread_m:
-        why = (f"the top face's heights scatter by {1000.0 * spread:.1f} mm (standard "
-               f"deviation), {1000.0 * excess:.1f} mm beyond what its points' noise "
-               f'({1000.0 * noise:.1f} mm) explains, more than max_top_spread_m='
-               f'{config.max_top_spread_m:g}: not measured well enough for a point')
-        return refused(UNCERTAIN_TOP, why, surface, regions, found.median_sigmas)
     # A match on the pixel grid stands for the patch of the face its pixel sees,
     # Z_rect^3 / (f^2 |n . v|): |n . v| is the same for every point of a level face and Z_rect
     # is f B / d. Matches anywhere else (geometric scenes) are taken as spread evenly.
@@ -504,6 +503,13 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                            float(np.median(face_heights)), xyz_world, u_left[band],
                            v_left[band], u_right[band], score[band], weight, surface,
                            found.median_sigmas)
+    if config.max_top_spread_m and excess > config.max_top_spread_m:
+        why = (f"the top face's heights scatter by {1000.0 * spread:.1f} mm (standard "
+               f"deviation), {1000.0 * excess:.1f} mm beyond what its points' noise "
+               f'({1000.0 * noise:.1f} mm) explains, more than max_top_spread_m='
+               f'{config.max_top_spread_m:g}: not measured well enough for a point')
+        return dataclasses.replace(refused(UNCERTAIN_TOP, why, surface, regions,
+                                           found.median_sigmas), scattered_face=face)
     fill = hull_fill(u_left[band], v_left[band], step)
     if fill < config.min_top_fill:
         in_pieces = refused(UNCERTAIN_TOP, f"the top face's matches fill {100.0 * fill:.0f} % of "

@@ -47,6 +47,7 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     grid_step,
     image_regions,
 )
+from stereo_fuzzy_perception.core.best_point.plain_top_height import plain_top_height
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 from stereo_fuzzy_perception.core.matched_points import RectifiedImage
 
@@ -82,6 +83,11 @@ PLAIN_OPENING_PX = 2
 PLAIN_SEED_SHARE = 0.5
 """A plain face holds at least this share of its matches, within the window's radius (the rest
 sit on the rim's edge)."""
+
+SCATTERED_SEED_SHARE = 0.75
+"""A plain face for a face refused for its scatter holds at least this share of its matches,
+within the window's radius: those matches are the face's band around its top height, its rim
+when the top is plain; a region that leaves a quarter of them out is not that face."""
 
 PLAIN_CONVEXITY = 0.85
 """A plain face covers at least this share of its convex hull (the objects' tops are
@@ -145,17 +151,25 @@ def face_from_image(area: CorrelationArea, image: RectifiedImage, left: CameraCa
 def plain_face_from_image(face: CorrelationArea, image: RectifiedImage,
                           left: CameraCalibration, right: CameraCalibration,
                           world_from_camera: np.ndarray, min_points: int,
-                          max_across_m: float) -> CorrelationArea | None:
-    """Return a face refused as in pieces, taken whole from the image's plain region, or None.
+                          max_across_m: float, right_image: RectifiedImage | None = None,
+                          max_height_m: float = 0.1) -> CorrelationArea | None:
+    """Return a refused face taken whole from the image's plain region, or None.
 
     Args:
-        face: The face as its matches give it (CorrelationArea.face_in_pieces).
+        face: The face as its matches give it (CorrelationArea.face_in_pieces or
+            scattered_face).
         image: The part of the left rectified image the matches were found in.
         left: Rectified calibration of the left image.
         right: Rectified calibration of the right image.
         world_from_camera: 4x4 pose of the left optical frame in `world`.
         min_points: Fewest points of a face (AreaConfig.min_points).
         max_across_m: Longest top face on the surface (AreaConfig.max_object_across_m).
+        right_image: For a face refused for its scatter (CorrelationArea.scattered_face),
+            whose matched heights are not its top's: the part of the right rectified image the
+            matcher read. The face is then taken only with the height where the region's rim
+            lies in both images (plain_top_height.py), found at its flattest matches' grey and
+            holding SCATTERED_SEED_SHARE of its matches.
+        max_height_m: Highest top searched for in both images [m].
 
     Returns:
         The area whose points are the region's pixels on the matches' grid, cut with the top
@@ -177,14 +191,26 @@ def plain_face_from_image(face: CorrelationArea, image: RectifiedImage,
                             (0, 0), SMOOTHING_SIGMA_PX)
     grey_level = 257.0 if pixels.dtype == np.uint16 else 1.0
     hull = None
-    for level, spread in _plain_levels(crop, rows - low[1], columns - low[0]):
+    levels = _plain_levels(crop, rows - low[1], columns - low[0])
+    # A scattered face is looked for at the grey of its flattest matches only: its rim matches
+    # take in the table, and the median of all their greys finds table regions.
+    for level, spread in levels[:1] if right_image is not None else levels:
         tolerance = max(PLAIN_TOLERANCE_SIGMAS * spread, PLAIN_TOLERANCE_GREY * grey_level)
         hull = _plain_region(np.abs(crop - level) <= tolerance, rows - low[1],
-                             columns - low[0], image.window_size // 2)
+                             columns - low[0], image.window_size // 2,
+                             SCATTERED_SEED_SHARE if right_image is not None
+                             else PLAIN_SEED_SHARE)
         if hull is not None:
             break
     if hull is None:
         return None
+    if right_image is not None:
+        measured = plain_top_height(hull.astype(float) + low + (image.x, image.y), level,
+                                    tolerance, image, right_image, left, right,
+                                    world_from_camera, face.surface, max_height_m)
+        if measured is None:
+            return None
+        face = dataclasses.replace(face, top_height=measured.height_m)
     step = grid_step(face.u_left, face.v_left)
     on_grid = _filled_on_grid(hull.astype(float) + low + (image.x, image.y), step,
                               face.u_left[0], face.v_left[0])
@@ -215,8 +241,8 @@ def _plain_levels(crop: np.ndarray, rows: np.ndarray, columns: np.ndarray
             (everything, MAD_TO_SIGMA * float(np.median(np.abs(seeds - everything))))]
 
 
-def _plain_region(plain: np.ndarray, rows: np.ndarray, columns: np.ndarray, reach: int
-                  ) -> np.ndarray | None:
+def _plain_region(plain: np.ndarray, rows: np.ndarray, columns: np.ndarray, reach: int,
+                  min_share: float = PLAIN_SEED_SHARE) -> np.ndarray | None:
     """Return the hull (K, 2) of the plain pixels' region around the matches, or None.
 
     Args:
@@ -225,6 +251,7 @@ def _plain_region(plain: np.ndarray, rows: np.ndarray, columns: np.ndarray, reac
         columns: Their columns.
         reach: The correlation window's radius [px]: a match whose window straddles the rim
             sits up to this far outside the face's plain pixels and still belongs to it.
+        min_share: Share of the matches the region holds at least.
     """
     # Opening cuts the thin bridges through which the region would leak into table texture
     # of the same grey.
@@ -238,7 +265,7 @@ def _plain_region(plain: np.ndarray, rows: np.ndarray, columns: np.ndarray, reac
     held = np.bincount(seeded[rows, columns], minlength=count)
     held[0] = 0
     region = int(np.argmax(held))
-    if region == 0 or held[region] < PLAIN_SEED_SHARE * len(columns):
+    if region == 0 or held[region] < min_share * len(columns):
         return None
     x, y, width, height, size = stats[region]
     if x == 0 or y == 0 or x + width >= plain.shape[1] or y + height >= plain.shape[0]:

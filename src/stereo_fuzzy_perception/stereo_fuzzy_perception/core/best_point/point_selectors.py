@@ -373,9 +373,18 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
             area = face_from_image(area, points.left_image, left, right, world_from_camera,
                                    config.min_points) or area
         elif area.face_in_pieces is not None:
+            # a face in pieces keeps its matches' height: the rim's matches that are there
+            # lie on the top
             area = plain_face_from_image(area.face_in_pieces, points.left_image, left, right,
                                          world_from_camera, config.min_points,
                                          config.max_object_across_m) or area
+        elif area.scattered_face is not None and points.right_image is not None:
+            # a scattered face's matched heights are not its top's: the height must come from
+            # where the plain region lies in both images
+            area = plain_face_from_image(
+                area.scattered_face, points.left_image, left, right, world_from_camera,
+                config.min_points, config.max_object_across_m, points.right_image,
+                config.max_object_height_m) or area
     if area.ok and config.min_object_across_m > 0.0:
         width = width_m(area.xyz_world[:, :2])
         if width < config.min_object_across_m:

@@ -106,8 +106,8 @@ class StereoMatchingPipeline:
             problem = region_problem(disparity_map, region, stride) or ''
             if not problem:
                 return self._finish(rectified, disparity_map, start, rectified_at, matched_at,
-                                    timings, _part_read(left_rect, narrowed, calibration),
-                                    region)
+                                    timings, _parts_read(left_rect, right_rect, narrowed,
+                                                         calibration), region)
             timings['region'] = 1e3 * (time.perf_counter() - start)
             start = time.perf_counter()
         # after a region, only what its rectification did not cover
@@ -118,7 +118,8 @@ class StereoMatchingPipeline:
                               threads=self.threads)
         matched_at = time.perf_counter()
         return self._finish(rectified, disparity_map, start, rectified_at, matched_at, timings,
-                            _part_read(left_rect, config, calibration), None, problem)
+                            _parts_read(left_rect, right_rect, config, calibration), None,
+                            problem)
 
     def _rectify(self, left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
                  config: MatcherConfig, continued: bool = False
@@ -140,12 +141,13 @@ class StereoMatchingPipeline:
 
     def _finish(self, rectified: StereoCalibration, disparity_map: DisparityMap, start: float,
                 rectified_at: float, matched_at: float, timings: dict[str, float],
-                left_image: RectifiedImage, region: SearchRegion | None, problem: str = ''
+                images: tuple[RectifiedImage, RectifiedImage], region: SearchRegion | None,
+                problem: str = ''
                 ) -> StereoMatchResult:
         """Triangulate and return the result with the steps' times."""
         points = triangulate(disparity_map.disparity, disparity_map.score, rectified,
                              self.point_stride)
-        points.left_image = left_image
+        points.left_image, points.right_image = images
         done = time.perf_counter()
         timings.update(rectify=1e3 * (rectified_at - start),
                        match=1e3 * (matched_at - rectified_at),
@@ -153,11 +155,15 @@ class StereoMatchingPipeline:
         return StereoMatchResult(rectified, disparity_map, points, timings, region, problem)
 
 
-def _part_read(left_rect: np.ndarray, config: MatcherConfig, calibration: StereoCalibration
-               ) -> RectifiedImage:
-    """Return a copy of the part of the left rectified image that a match with config read
-    (the rectifier's buffers hold other pairs' pixels elsewhere and are reused)."""
+def _parts_read(left_rect: np.ndarray, right_rect: np.ndarray, config: MatcherConfig,
+                calibration: StereoCalibration) -> tuple[RectifiedImage, RectifiedImage]:
+    """Return copies of the parts of the left and right rectified images that a match with
+    config read (the rectifier's buffers hold other pairs' pixels elsewhere and are reused)."""
     read = pixels_read(config, calibration.left.width, calibration.left.height)
-    (top, bottom), (first, last) = read.rows, read.left_columns
-    return RectifiedImage(left_rect[top:bottom, first:last].copy(), first, top,
-                          config.window_size)
+    (top, bottom) = read.rows
+
+    def part(image: np.ndarray, columns: tuple[int, int]) -> RectifiedImage:
+        return RectifiedImage(image[top:bottom, columns[0]:columns[1]].copy(), columns[0], top,
+                              config.window_size)
+
+    return part(left_rect, read.left_columns), part(right_rect, read.right_columns)

@@ -69,13 +69,14 @@ def stereo_matches_message(header: Header, rectified: StereoCalibration, points:
     msg.left_info = calibration_to_camera_info(rectified.left, header)
     msg.right_info = calibration_to_camera_info(rectified.right, header)
     msg.points = matched_points_to_cloud(points, header)
-    image = points.left_image
-    if image is not None:
-        msg.left_rectified = array_to_image(
-            image.pixels, 'mono16' if image.pixels.dtype == np.uint16 else 'mono8', header)
-        msg.left_rectified_roi = RegionOfInterest(
+    for side, image in (('left', points.left_image), ('right', points.right_image)):
+        if image is None:
+            continue
+        setattr(msg, f'{side}_rectified', array_to_image(
+            image.pixels, 'mono16' if image.pixels.dtype == np.uint16 else 'mono8', header))
+        setattr(msg, f'{side}_rectified_roi', RegionOfInterest(
             x_offset=int(image.x), y_offset=int(image.y), width=int(image.pixels.shape[1]),
-            height=int(image.pixels.shape[0]))
+            height=int(image.pixels.shape[0])))
     msg.method = config.method
     msg.window_size = int(config.window_size)
     msg.min_disparity = int(config.min_disparity)
@@ -83,34 +84,37 @@ def stereo_matches_message(header: Header, rectified: StereoCalibration, points:
     return msg
 
 
-def stereo_matches_image(msg: StereoMatches) -> RectifiedImage | None:
-    """Return the left rectified image that came with the matches, or None when none did.
+def stereo_matches_image(msg: StereoMatches, side: str = 'left') -> RectifiedImage | None:
+    """Return the left (or right) rectified image that came with the matches, or None when none
+    did.
 
     Raises:
         ImageEncodingError: An image that is not mono8 or mono16, whose buffer does not match
-            its size, or whose left_rectified_roi does not give its size or does not lie
-            inside the rectified image (left_info's width and height).
+            its size, or whose region (left_rectified_roi, right_rectified_roi) does not give
+            its size or does not lie inside the rectified image (that side's info's width and
+            height).
     """
-    image = msg.left_rectified
+    name = f'{side}_rectified'
+    image = getattr(msg, name)
     if image.width == 0 and image.height == 0 and not image.data:
         return None
     if image.encoding not in ('mono8', 'mono16'):
-        raise ImageEncodingError(f'left_rectified: encoding {image.encoding!r}, need mono8 or '
+        raise ImageEncodingError(f'{name}: encoding {image.encoding!r}, need mono8 or '
                                  'mono16 (the matched grey image)')
-    roi = msg.left_rectified_roi
+    roi = getattr(msg, f'{name}_roi')
+    info = getattr(msg, f'{side}_info')
     if (roi.width, roi.height) != (image.width, image.height):
         raise ImageEncodingError(
-            f'left_rectified is {image.width}x{image.height} but left_rectified_roi says '
+            f'{name} is {image.width}x{image.height} but {name}_roi says '
             f'{roi.width}x{roi.height}')
-    if (roi.x_offset + roi.width > msg.left_info.width
-            or roi.y_offset + roi.height > msg.left_info.height):
+    if roi.x_offset + roi.width > info.width or roi.y_offset + roi.height > info.height:
         raise ImageEncodingError(
-            f'left_rectified_roi {roi.width}x{roi.height} at ({roi.x_offset}, {roi.y_offset}) '
-            f'reaches past the {msg.left_info.width}x{msg.left_info.height} rectified image')
+            f'{name}_roi {roi.width}x{roi.height} at ({roi.x_offset}, {roi.y_offset}) '
+            f'reaches past the {info.width}x{info.height} rectified image')
     try:
         pixels = image_to_array(image)
     except ImageEncodingError as error:
-        raise ImageEncodingError(f'left_rectified: {error}') from None
+        raise ImageEncodingError(f'{name}: {error}') from None
     return RectifiedImage(pixels, int(roi.x_offset), int(roi.y_offset),
                           max(1, int(msg.window_size)))
 
