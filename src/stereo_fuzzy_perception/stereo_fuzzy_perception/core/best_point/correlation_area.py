@@ -380,10 +380,6 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
         return refused(NO_POINTS, f'none of {points_in} matched points is finite, in front of '
                                   'the cameras and inside the workspace box')
     camera_centre = pose[:3, 3]
-    surface = fit_work_surface(
-        world, height_per_disparity(world, camera_centre, disparity, np.array([0.0, 0.0, 1.0])),
-        config.surface_search_m, config.min_disparity_sigma_px,
-        config.assumed_disparity_sigma_px)
     near_surface = np.abs(world[2]) <= config.surface_search_m
     if config.min_surface_score and np.any(near_surface) and (
             float(np.median(score[near_surface])) < config.min_surface_score):
@@ -402,6 +398,12 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                                       f'min_surface_score={config.min_surface_score:g}) and '
                                       'no match in the workspace box scores that',
                            surface)
+    else:
+        surface = fit_work_surface(
+            world, height_per_disparity(world, camera_centre, disparity,
+                                        np.array([0.0, 0.0, 1.0])),
+            config.surface_search_m, config.min_disparity_sigma_px,
+            config.assumed_disparity_sigma_px)
     per_px = height_per_disparity(world, camera_centre, disparity, surface.normal)
     sigma = surface.disparity_sigma_px * per_px
     heights = surface.heights(world)
