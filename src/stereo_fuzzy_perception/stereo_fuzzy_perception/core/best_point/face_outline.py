@@ -30,7 +30,9 @@ plain_face_from_image takes that region as the face, when it is one convex regio
 within the image, holding most of the matches (within the window's radius of it: a match
 whose window straddles the rim sits outside the plain pixels), and of an object's size on the
 top plane;
-otherwise the refusal stands. ROS-free: numpy, scipy and OpenCV.
+otherwise the refusal stands. A plain top refused for its scatter is taken the same way, but only
+with its height measured from both rectified images (plain_top_height.py): its matched heights
+are not its top's. ROS-free: numpy, scipy and OpenCV.
 """
 
 from __future__ import annotations
