@@ -188,6 +188,8 @@ def main() -> None:
     args = parser.parse_args()
     if not 0 <= args.from_scene < args.per_type:
         parser.error(f'--from-scene {args.from_scene} must be in 0..{args.per_type - 1}')
+    if args.against and not Path(args.against).is_file():
+        parser.error(f'--against {args.against}: no such file (write one with --save)')
     matched = scenes(args.split, args.per_type, args.point_stride, Path(args.cache), args.jobs,
                      args.oversampling)[args.from_scene * len(OBJECT_TYPES):]
     config = replace(AreaConfig(), **{item.partition('=')[0]: float(item.partition('=')[2])

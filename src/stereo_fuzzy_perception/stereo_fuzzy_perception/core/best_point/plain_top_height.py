@@ -125,9 +125,9 @@ def plain_top_height(outline: np.ndarray, grey: float, tolerance: float,
             scores[index] = float(member @ left_member) / norm
     best = int(np.argmax(scores))
     peak = float(scores[best])
-    centre_disparity = np.array([float(to_right(centre[0], centre[1], float(h))[0])
-                                 for h in heights])
-    far = np.abs(centre_disparity - centre_disparity[best]) > FAR_PX
+    centre_columns = to_right(np.full(count, centre[0, 0]), np.full(count, centre[1, 0]),
+                              heights)
+    far = np.abs(centre_columns - centre_columns[best]) > FAR_PX
     margin = peak - float(np.max(scores[far])) if np.any(far) else peak
     if peak < MIN_PEAK or margin < MIN_MARGIN:
         return None
@@ -168,9 +168,10 @@ def _contrast(pixels: np.ndarray) -> float:
 
 def _plane_disparity(left: CameraCalibration, right: CameraCalibration,
                      world_from_camera: np.ndarray, surface: SurfacePlane
-                     ) -> Callable[[np.ndarray, np.ndarray, float], np.ndarray]:
+                     ) -> Callable[[np.ndarray, np.ndarray, float | np.ndarray], np.ndarray]:
     """Return f(u, v, height) -> the right image's column of each left pixel (u, v) on the plane
-    parallel to the surface at that height (the rays cut as in face_outline._on_top_plane)."""
+    parallel to the surface at that height, one height or one per pixel (the rays cut as in
+    face_outline._on_top_plane)."""
     pose = np.asarray(world_from_camera, dtype=float)
     to_world = pose[:3, :3] @ np.asarray(left.R, dtype=float).reshape(3, 3).T @ np.linalg.inv(
         np.asarray(left.P, dtype=float)[:3, :3])
@@ -180,7 +181,7 @@ def _plane_disparity(left: CameraCalibration, right: CameraCalibration,
     baseline_term = -float(np.asarray(right.P, dtype=float)[0, 3])
     shift = float(left.P[0, 2] - right.P[0, 2])
 
-    def column(u: np.ndarray, v: np.ndarray, height: float) -> np.ndarray:
+    def column(u: np.ndarray, v: np.ndarray, height: float | np.ndarray) -> np.ndarray:
         facing = facing_of[0] * u + facing_of[1] * v + facing_of[2]
         depth = (height + surface.offset_m * float(normal[2]) - centre_level) / facing
         result: np.ndarray = u - shift - baseline_term / depth
