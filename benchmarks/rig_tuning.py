@@ -22,6 +22,9 @@ way for a net gain of two is noise, which the totals alone do not show.
     # ... change the code ...
     nice python benchmarks/rig_tuning.py --per-type 50 --from-scene 20 --against /tmp/before.json
 
+`--by-rig` adds the outcomes of the rigs that resolve depth to at most 1 mm per 0.1 px of
+disparity and of the others (rig_breakdown.py gives the same split of the evaluation run).
+
 `--decompose` tells where the error comes from. The matched pixels whose rays meet the true
 top face ("true pixels") and the correlation area's pixels ("area pixels") are each cut with a
 plane (the true top height, or the area's) and their centroid graded: area pixels at the true
@@ -47,6 +50,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'src' / 'stereo_fuzzy_perception'))
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
 for variable in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ.setdefault(variable, '1')
 
@@ -66,6 +71,8 @@ from stereo_fuzzy_perception.simulation.scene_distribution import (  # noqa: E40
     split_plan,
 )
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene  # noqa: E402
+
+from benchmarks.rig_breakdown import depth_per_disparity_mm  # noqa: E402
 
 SPLITS = ('train', 'validation')
 """The only splits this script reads: never the evaluation split."""
@@ -105,6 +112,30 @@ def outcome_counts(errors: dict[str, float | None], tolerance_mm: float) -> str:
     classes = [outcome(error, tolerance_mm) for error in errors.values()]
     return ', '.join(f'{name} {classes.count(name)}'
                      for name in ('within', '<= 10 mm', '> 10 mm', 'no point'))
+
+
+def outcomes_by_resolution(errors: dict[str, float | None], resolutions: dict[int, float],
+                           tolerance_mm: float, split_mm: float = 1.0) -> list[str]:
+    """Return the outcome counts of the scenes of rigs at most split_mm and over it.
+
+    errors: {label: error [mm] or None}, labels as scenes() makes them ('... rig K ...');
+    resolutions: rig index -> depth change per 0.1 px of disparity [mm]
+    (rig_breakdown.depth_per_disparity_mm).
+    """
+    groups: dict[str, dict[str, float | None]] = {'near': {}, 'far': {}}
+    for label, error in errors.items():
+        rig = int(label.split(' rig ')[1].split()[0])
+        groups['near' if resolutions[rig] <= split_mm else 'far'][label] = error
+    lines = []
+    for name, group in groups.items():
+        if group:
+            count = len({int(label.split(' rig ')[1].split()[0]) for label in group})
+            side = 'at most' if name == 'near' else 'over'
+            counted = outcome_counts(group, tolerance_mm)
+            lines.append(f'  rigs {side} {split_mm:g} mm per 0.1 px ({count} rig'
+                         f'{"s" if count > 1 else ""}, {len(group)} scene'
+                         f'{"s" if len(group) > 1 else ""}): {counted}')
+    return lines
 
 
 def changed_outcomes(before: dict[str, float | None], after: dict[str, float | None],
@@ -185,6 +216,9 @@ def main() -> None:
     parser.add_argument('--save', metavar='FILE', help="write each scene's fuzzy_fitted error")
     parser.add_argument('--against', metavar='FILE',
                         help='list the scenes whose outcome changed since a --save')
+    parser.add_argument('--by-rig', action='store_true',
+                        help='the outcomes of rigs on either side of 1 mm of depth per 0.1 px '
+                             '(rig_breakdown.py)')
     args = parser.parse_args()
     if not 0 <= args.from_scene < args.per_type:
         parser.error(f'--from-scene {args.from_scene} must be in 0..{args.per_type - 1}')
@@ -222,6 +256,12 @@ def main() -> None:
               f' {int(np.sum(~decided))} without a point')
         if name == 'fuzzy_fitted':
             compare(rows, args)
+            if args.by_rig:
+                errors = {row[1]: (None if math.isnan(row[0]) else row[0]) for row in rows}
+                rigs = {int(label.split(' rig ')[1].split()[0]) for label in errors}
+                print('\n'.join(outcomes_by_resolution(
+                    errors, {rig: depth_per_disparity_mm(rig) for rig in rigs},
+                    args.tolerance_mm)))
         if name != 'centroid':
             continue
         rows.sort(key=lambda row: -np.inf if np.isnan(row[0]) else -row[0])

@@ -4,7 +4,12 @@ import math
 
 import pytest
 
-from benchmarks.rig_tuning import changed_outcomes, outcome, outcome_counts
+from benchmarks.rig_tuning import (
+    changed_outcomes,
+    outcome,
+    outcome_counts,
+    outcomes_by_resolution,
+)
 
 
 @pytest.mark.parametrize(('error', 'expected'), [
@@ -28,3 +33,17 @@ def test_the_changes_are_listed_scene_by_scene_and_the_totals_of_both_runs_kept(
 def test_a_move_of_more_than_a_millimetre_within_a_class_is_listed():
     assert changed_outcomes({'a': 0.5}, {'a': 2.0}, 3.0) == ['  a:     0.5 ->     2.0 mm']
     assert changed_outcomes({'a': None}, {'a': None}, 3.0) == []
+
+
+def test_the_outcomes_are_split_by_the_rigs_depth_resolution():
+    errors = {'seed 1 rig 3 top 40 px wood': 1.0, 'seed 2 rig 3 top 40 px wood': None,
+              'seed 3 rig 12 top 30 px granite': 12.0, 'seed 4 rig 7 top 30 px speckle': 2.0}
+    lines = outcomes_by_resolution(errors, {3: 0.5, 7: 1.0, 12: 2.4}, 3.0)
+    assert lines == [
+        '  rigs at most 1 mm per 0.1 px (2 rigs, 3 scenes): '
+        'within 2, <= 10 mm 0, > 10 mm 0, no point 1',
+        '  rigs over 1 mm per 0.1 px (1 rig, 1 scene): '
+        'within 0, <= 10 mm 0, > 10 mm 1, no point 0']
+    assert outcomes_by_resolution({'seed 1 rig 3 top 40 px wood': 1.0}, {3: 0.5}, 3.0) == [
+        '  rigs at most 1 mm per 0.1 px (1 rig, 1 scene): '
+        'within 1, <= 10 mm 0, > 10 mm 0, no point 0']
