@@ -46,8 +46,7 @@ def depth_per_disparity_mm(rig_index: int) -> float:
     if axis[2] >= 0.0:
         return math.inf  # the optical axis never meets the table
     depth = -centre[2] / axis[2]
-    focal = drawn.camera.height / 2.0 / math.tan(math.radians(drawn.camera.vertical_fov_deg) / 2.0)
-    return 1000.0 * depth ** 2 / (focal * drawn.rig.baseline_m) * DISPARITY_STEP_PX
+    return 1000.0 * depth ** 2 / (drawn.camera.focal_px * drawn.rig.baseline_m) * DISPARITY_STEP_PX
 
 
 def within_counts(rows: list[dict[str, str]], tolerance_mm: float

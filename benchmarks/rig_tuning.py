@@ -114,6 +114,11 @@ def outcome_counts(errors: dict[str, float | None], tolerance_mm: float) -> str:
                      for name in ('within', '<= 10 mm', '> 10 mm', 'no point'))
 
 
+def rig_of(label: str) -> int:
+    """Return the rig index of a scene label as scenes() makes it ('seed S rig K top ...')."""
+    return int(label.split(' rig ')[1].split()[0])
+
+
 def outcomes_by_resolution(errors: dict[str, float | None], resolutions: dict[int, float],
                            tolerance_mm: float, split_mm: float = 1.0) -> list[str]:
     """Return the outcome counts of the scenes of rigs at most split_mm and over it.
@@ -124,12 +129,11 @@ def outcomes_by_resolution(errors: dict[str, float | None], resolutions: dict[in
     """
     groups: dict[str, dict[str, float | None]] = {'near': {}, 'far': {}}
     for label, error in errors.items():
-        rig = int(label.split(' rig ')[1].split()[0])
-        groups['near' if resolutions[rig] <= split_mm else 'far'][label] = error
+        groups['near' if resolutions[rig_of(label)] <= split_mm else 'far'][label] = error
     lines = []
     for name, group in groups.items():
         if group:
-            count = len({int(label.split(' rig ')[1].split()[0]) for label in group})
+            count = len({rig_of(label) for label in group})
             side = 'at most' if name == 'near' else 'over'
             counted = outcome_counts(group, tolerance_mm)
             lines.append(f'  rigs {side} {split_mm:g} mm per 0.1 px ({count} rig'
@@ -255,12 +259,12 @@ def main() -> None:
               f', mean {np.mean(errors[decided]):.2f} mm, max {np.max(errors[decided]):.1f} mm,'
               f' {int(np.sum(~decided))} without a point')
         if name == 'fuzzy_fitted':
-            compare(rows, args)
+            by_scene = {row[1]: (None if math.isnan(row[0]) else row[0]) for row in rows}
+            compare(by_scene, args)
             if args.by_rig:
-                errors = {row[1]: (None if math.isnan(row[0]) else row[0]) for row in rows}
-                rigs = {int(label.split(' rig ')[1].split()[0]) for label in errors}
+                rigs = {rig_of(label) for label in by_scene}
                 print('\n'.join(outcomes_by_resolution(
-                    errors, {rig: depth_per_disparity_mm(rig) for rig in rigs},
+                    by_scene, {rig: depth_per_disparity_mm(rig) for rig in rigs},
                     args.tolerance_mm)))
         if name != 'centroid':
             continue
@@ -271,9 +275,8 @@ def main() -> None:
                   f'{decision.status}: {decision.reason[:160]}')
 
 
-def compare(rows: list, args: argparse.Namespace) -> None:
+def compare(errors: dict[str, float | None], args: argparse.Namespace) -> None:
     """Save the scenes' errors (--save) and list what changed since a saved run (--against)."""
-    errors = {row[1]: (None if math.isnan(row[0]) else row[0]) for row in rows}
     if args.against:
         before = json.loads(Path(args.against).read_text())
         print(f'changed since {args.against}:')
