@@ -41,7 +41,8 @@ class Box:
 def grid_matches(rig: StereoRig, box: Box | None, noise_px: float, stride: int = 1,
                  seed: int = 0, fov_deg: float = 45.0, surface_z: float = 0.0,
                  surface_slope: tuple[float, float] = (0.0, 0.0), window: int = 9,
-                 fatten_px: int = 0, image: bool = False, plain_rim_px: int = 0
+                 fatten_px: int = 0, image: bool = False, plain_rim_px: int = 0,
+                 top_contrast: float = 1.0
                  ) -> tuple[MatchedPoints, CameraCalibration, CameraCalibration]:
     """Return (matches, left, right rectified calibrations) of a box on a (tilted) surface.
 
@@ -51,7 +52,7 @@ def grid_matches(rig: StereoRig, box: Box | None, noise_px: float, stride: int =
     side is plain would); `image` attaches the left rectified image: a textured table and a
     brighter textured top. `plain_rim_px` makes the top plain (a grey level of sensor noise in
     the image) and, as window correlation would, leaves it matches only within that many
-    pixels of its rim.
+    pixels of its rim. `top_contrast` scales the texture of a textured top in the image.
     """
     left, right = rectified_calibration(rig, default_camera_matrix(vertical_fov_deg=fov_deg))
     focal, cx, cy = left.P[0, 0], left.P[0, 2], left.P[1, 2]
@@ -83,6 +84,8 @@ def grid_matches(rig: StereoRig, box: Box | None, noise_px: float, stride: int =
         texture *= 25.0 / float(texture.std())
         if plain:
             texture = np.where(on_top, rng.normal(size=depth.shape), texture)
+        elif box is not None:
+            texture = np.where(on_top, top_contrast * texture, texture)
         brighter = 60.0 + (110.0 * on_top if box is not None else 0.0)
         picture = RectifiedImage(np.clip(brighter + texture, 0, 255).astype(np.uint8),
                                  window_size=window)

@@ -171,6 +171,48 @@ def test_a_face_in_pieces_whose_image_region_leaks_into_the_table_stays_refused(
     assert decision.best_point_world is None
 
 
+def top_in_pieces(kept_rows, period, rail_px):
+    """Return the textured box's matches with its top matched, as a top with stripes along
+    the epipolar lines is, only in bands of kept_rows rows every period rows, and in full
+    within rail_px columns of its left and right rims (0: separate stripes). The top's
+    texture is strong: it is no plain region."""
+    points, left, right = grid_matches(RIG, BOX, 0.05, 1, image=True, top_contrast=5.0)
+    pose = RIG.world_from_left_camera()
+    heights = (points.xyz.astype(float) @ pose[:3, :3].T + pose[:3, 3])[:, 2]
+    on_top = heights > 0.5 * BOX.height
+    columns = points.u_left[on_top]
+    inner = ((points.u_left >= columns.min() + rail_px)
+             & (points.u_left <= columns.max() - rail_px))
+    dropped = on_top & inner & (points.v_left.astype(int) % period >= kept_rows)
+    return points.subset(~dropped), left, right
+
+
+def test_a_textured_face_with_holes_is_outlined_from_the_image():
+    points, left, right = top_in_pieces(4, 9, 4)
+    pose = RIG.world_from_left_camera()
+    area = find_correlation_area(points, pose, DEFAULTS, float(left.P[0, 2] - right.P[0, 2]))
+    assert area.status == UNCERTAIN_TOP and area.face_in_pieces is not None, area.reason
+    # a textured top is no plain region: only its rim in the image makes it whole
+    assert plain_face_from_image(area.face_in_pieces, points.left_image, left, right, pose,
+                                 DEFAULTS.min_points, DEFAULTS.max_object_across_m) is None
+    assert decide(points, left, right, IMAGE_OFF).status == UNCERTAIN_TOP
+    outlined, decision = error_mm(points, left, right, BOX)
+    assert decision.status == 'ok'
+    left_calibration = grid_matches(RIG, None, 0.0, 8)[1]
+    pixel_mm = 1000.0 * camera_distance(RIG) / float(left_calibration.P[0, 0])
+    assert outlined - pixel_floor_mm(BOX, 1) < pixel_mm
+
+
+@pytest.mark.parametrize('kept_rows, period, rail_px', [(1, 9, 4), (4, 9, 0)],
+                         ids=['mostly-holes', 'separate-stripes'])
+def test_a_face_too_much_in_pieces_stays_refused_though_the_image_has_its_rim(
+        kept_rows, period, rail_px):
+    points, left, right = top_in_pieces(kept_rows, period, rail_px)
+    decision = decide(points, left, right)
+    assert decision.status == UNCERTAIN_TOP and 'in pieces' in decision.reason
+    assert decision.best_point_world is None
+
+
 def test_a_plain_face_holds_the_matches_within_a_windows_radius_of_its_pixels():
     # A plain square 20 px across; 10 matches on it and 12 on a line 3 px below its edge, where
     # a window straddling the rim put them: most of the matches are the face's.

@@ -89,7 +89,9 @@ class FuzzyBestPointSettings:
         'rectified image that comes with the matches (StereoMatches.left_rectified) rather than '
         'from the matches alone: the matches place the rim only to within half a correlation '
         'window; and take a face in pieces (min_top_fill) whole when the image shows it as one '
-        'plain region around its matches (a low-texture top matched only at its rim)')
+        'plain region around its matches (a low-texture top matched only at its rim) or, one '
+        'piece with holes filling at least 0.8 of min_top_fill, within its rim in the image (a '
+        'textured top matched in blotches)')
     min_surface_score: float = parameter(
         _AREA.min_surface_score, 'When the matches near the work surface score below this '
         '(median correlation score), the surface is plain and matched on sensor noise: only the '

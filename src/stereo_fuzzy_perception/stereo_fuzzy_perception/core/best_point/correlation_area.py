@@ -144,7 +144,8 @@ class AreaConfig:
             top face's outline from the image's edges (face_outline.py) rather than from the
             matches alone; and a face refused as in pieces (min_top_fill) is taken after all
             when the image shows it as one plain region around its matches
-            (face_outline.plain_face_from_image).
+            (face_outline.plain_face_from_image) or, one piece with holes only just in
+            pieces, within its rim in the image (point_selectors.PIECES_OUTLINED_*).
         min_surface_score: When the matches near the work surface score below this (their
             median correlation score), the surface is plain: its windows hold sensor noise,
             matched anywhere along the search range. Then only the matches scoring at least

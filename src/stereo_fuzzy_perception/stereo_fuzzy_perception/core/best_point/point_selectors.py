@@ -47,7 +47,12 @@ from stereo_fuzzy_perception.core.best_point.neural_baseline import (
     neural_base_point,
     neural_features,
 )
-from stereo_fuzzy_perception.core.best_point.object_segmentation import width_m
+from stereo_fuzzy_perception.core.best_point.object_segmentation import (
+    grid_step,
+    hull_fill,
+    image_regions,
+    width_m,
+)
 from stereo_fuzzy_perception.core.best_point.rule_base import (
     RuleBase,
     RuleBaseError,
@@ -70,6 +75,21 @@ OUTPUT_STATUSES = (NON_FINITE_POINT, OUTSIDE_WORKSPACE)
 SELECTORS = ('fuzzy_fitted', 'fuzzy_chapter', 'centroid', 'max_score', 'neural_network')
 FUZZY_SELECTORS = ('fuzzy_fitted', 'fuzzy_chapter')
 NEURAL_WEIGHTS_FILE = 'neural_baseline.npz'
+
+PIECES_OUTLINED_FILL_SHARE = 0.8
+"""A face in pieces (its matches fill less than min_top_fill of their hull) that the image does
+not show as one plain region is outlined from the image's edges like a whole face when its
+fill is at least this share of min_top_fill: a textured top matched in blotches (wood grain, a
+print) is in pieces only just, and its rim is in the image. On the train and validation splits
+(benchmarks/rig_tuning.py), below 0.8 of the default faces of side-wall and table bits came in
+with errors over 10 mm."""
+PIECES_OUTLINED_MIN_POINTS = 2
+"""...when it holds at least this many times min_points matches: a few dozen matches at a
+coarse point stride say too little about where the rim is..."""
+PIECES_OUTLINED_ONE_PIECE = 0.8
+"""...and when at least this share of its matches is one connected piece (a face with holes):
+the outline is drawn around the largest piece (face_outline.py), so separate pieces would
+give the centre of one of them."""
 
 
 class SelectorError(ValueError):
@@ -375,9 +395,12 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
         elif area.face_in_pieces is not None:
             # a face in pieces keeps its matches' height: the rim's matches that are there
             # lie on the top
-            area = plain_face_from_image(area.face_in_pieces, points.left_image, left, right,
-                                         world_from_camera, config.min_points,
-                                         config.max_object_across_m) or area
+            pieces = area.face_in_pieces
+            area = (plain_face_from_image(pieces, points.left_image, left, right,
+                                          world_from_camera, config.min_points,
+                                          config.max_object_across_m)
+                    or _outlined_pieces(pieces, points, left, right, world_from_camera, config)
+                    or area)
         elif area.scattered_face is not None and points.right_image is not None:
             # a scattered face's matched heights are not its top's: the height must come from
             # where the plain region lies in both images
@@ -393,6 +416,25 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
                 f'narrower than any object (min_object_across_m={config.min_object_across_m:g})'
                 ": a sliver of a face, whose centre is not the face's"))
     return area
+
+
+def _outlined_pieces(pieces: CorrelationArea, points: MatchedPoints, left: CameraCalibration,
+                     right: CameraCalibration, world_from_camera: np.ndarray,
+                     config: AreaConfig) -> CorrelationArea | None:
+    """Return a face in pieces outlined from the image like a whole face, or None when it is
+    too much in pieces, too sparse or in separate pieces (PIECES_OUTLINED_*), or when the image
+    gives no outline."""
+    assert points.left_image is not None
+    u, v = pieces.u_left, pieces.v_left
+    step = grid_step(u, v)
+    if (pieces.points_used < PIECES_OUTLINED_MIN_POINTS * config.min_points
+            or hull_fill(u, v, step) < PIECES_OUTLINED_FILL_SHARE * config.min_top_fill):
+        return None
+    labels, _ = image_regions(u, v, np.ones(len(u), dtype=bool), step)
+    if np.bincount(labels)[1:].max() < PIECES_OUTLINED_ONE_PIECE * len(u):
+        return None
+    return face_from_image(pieces, points.left_image, left, right, world_from_camera,
+                           config.min_points)
 
 
 def area_features(points: MatchedPoints, left: CameraCalibration, right: CameraCalibration,
