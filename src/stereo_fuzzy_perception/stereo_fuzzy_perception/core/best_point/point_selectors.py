@@ -81,15 +81,15 @@ PIECES_OUTLINED_FILL_SHARE = 0.8
 not show as one plain region is outlined from the image's edges like a whole face when its
 fill is at least this share of min_top_fill: a textured top matched in blotches (wood grain, a
 print) is in pieces only just, and its rim is in the image. On the train and validation splits
-(benchmarks/rig_tuning.py), below 0.8 of the default faces of side-wall and table bits came in
-with errors over 10 mm."""
+(benchmarks/rig_tuning.py) faces of side-wall and table bits came in with errors over 10 mm
+from half of min_top_fill down; 0.8 keeps a margin from there."""
 PIECES_OUTLINED_MIN_POINTS = 2
 """...when it holds at least this many times min_points matches: a few dozen matches at a
 coarse point stride say too little about where the rim is..."""
 PIECES_OUTLINED_ONE_PIECE = 0.8
 """...and when at least this share of its matches is one connected piece (a face with holes):
-the outline is drawn around the largest piece (face_outline.py), so separate pieces would
-give the centre of one of them."""
+the outline is drawn around the largest piece (face_outline.py), so separate stripes would
+give the centre of one of them (test_face_outline.py builds such a top; the splits have none)."""
 
 
 class SelectorError(ValueError):
