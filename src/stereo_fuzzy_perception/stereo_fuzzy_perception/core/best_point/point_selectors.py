@@ -62,7 +62,7 @@ from stereo_fuzzy_perception.core.best_point.rule_base import (
 )
 from stereo_fuzzy_perception.core.best_point.work_surface import SurfacePlane
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
-from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 
 NON_FINITE_POINT = 'non_finite_point'
@@ -399,7 +399,8 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
             area = (plain_face_from_image(pieces, points.left_image, left, right,
                                           world_from_camera, config.min_points,
                                           config.max_object_across_m)
-                    or _outlined_pieces(pieces, points, left, right, world_from_camera, config)
+                    or _outlined_pieces(pieces, points.left_image, left, right,
+                                        world_from_camera, config)
                     or area)
         elif area.scattered_face is not None and points.right_image is not None:
             # a scattered face's matched heights are not its top's: the height must come from
@@ -418,13 +419,12 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     return area
 
 
-def _outlined_pieces(pieces: CorrelationArea, points: MatchedPoints, left: CameraCalibration,
+def _outlined_pieces(pieces: CorrelationArea, image: RectifiedImage, left: CameraCalibration,
                      right: CameraCalibration, world_from_camera: np.ndarray,
                      config: AreaConfig) -> CorrelationArea | None:
-    """Return a face in pieces outlined from the image like a whole face, or None when it is
-    too much in pieces, too sparse or in separate pieces (PIECES_OUTLINED_*), or when the image
-    gives no outline."""
-    assert points.left_image is not None
+    """Return a face in pieces outlined from the left image like a whole face, or None when it
+    is too much in pieces, too sparse or in separate pieces (PIECES_OUTLINED_*), or when the
+    image gives no outline."""
     u, v = pieces.u_left, pieces.v_left
     step = grid_step(u, v)
     if (pieces.points_used < PIECES_OUTLINED_MIN_POINTS * config.min_points
@@ -433,8 +433,7 @@ def _outlined_pieces(pieces: CorrelationArea, points: MatchedPoints, left: Camer
     labels, _ = image_regions(u, v, np.ones(len(u), dtype=bool), step)
     if np.bincount(labels)[1:].max() < PIECES_OUTLINED_ONE_PIECE * len(u):
         return None
-    return face_from_image(pieces, points.left_image, left, right, world_from_camera,
-                           config.min_points)
+    return face_from_image(pieces, image, left, right, world_from_camera, config.min_points)
 
 
 def area_features(points: MatchedPoints, left: CameraCalibration, right: CameraCalibration,
