@@ -80,9 +80,9 @@ PIECES_OUTLINED_FILL_SHARE = 0.8
 """A face in pieces (its matches fill less than min_top_fill of their hull) that the image does
 not show as one plain region is outlined from the image's edges like a whole face when its
 fill is at least this share of min_top_fill: a textured top matched in blotches (wood grain, a
-print) is in pieces only just, and its rim is in the image. On the train and validation splits
-(benchmarks/rig_tuning.py) faces of side-wall and table bits came in with errors over 10 mm
-from half of min_top_fill down; 0.8 keeps a margin from there."""
+print) is in pieces only just, and its rim is in the image. Faces further in pieces are more
+often bits of side wall and table; where that starts, measured, is in the package README
+(step 1, "A textured top just in pieces")."""
 PIECES_OUTLINED_MIN_POINTS = 2
 """...when it holds at least this many times min_points matches: a few dozen matches at a
 coarse point stride say too little about where the rim is..."""
