@@ -13,6 +13,7 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     STATUS_OK,
     AreaConfig,
     CorrelationArea,
+    _correlation_area,
     find_correlation_area,
 )
 from stereo_fuzzy_perception.core.best_point.object_segmentation import (
@@ -119,10 +120,28 @@ def test_a_low_disc_in_noise_is_found_by_its_area(seed):
     assert centre_error_m(area, disc) < 0.003
 
 
+@pytest.mark.parametrize('seed', [0, 5])
+def test_a_low_wide_disc_is_found_over_wider_squares(seed):
+    # 5 mm high, 70 mm across, 0.8 m away, 0.25 px of disparity noise: over squares of
+    # smoothing_px no region stands out as an object, over squares twice as wide the disc does
+    disc = Box((0.2, 0.15), 0.07, 0.005, round=True)
+    points, left, right = grid_matches(FAR_RIG, disc, 0.25, seed=seed)
+    shift = float(left.P[0, 2] - right.P[0, 2])
+    pose = FAR_RIG.world_from_left_camera()
+    first, none_stood_out = _correlation_area(points, pose, DEFAULTS, shift,
+                                              DEFAULTS.smoothing_px)
+    assert first.status == NO_OBJECT and none_stood_out, first.reason
+    area = find_correlation_area(points, pose, DEFAULTS, shift)
+    assert area.status == STATUS_OK, area.reason
+    assert area.top_height == pytest.approx(0.005, abs=0.0015)
+    assert centre_error_m(area, disc) < 0.003
+
+
 def test_a_refused_region_names_the_area_test():
     area = area_in(FAR_RIG, None, 0.3, seed=5)
     assert area.status == NO_OBJECT
     assert 'area_top_sigmas=3' in area.reason and 'squares' in area.reason, area.reason
+    assert area.reason.endswith('(nor over squares of 31 px)'), area.reason
     off = area_in(FAR_RIG, None, 0.3, seed=5, config=NO_AREA_TEST)
     assert 'area_top_sigmas' not in off.reason
 

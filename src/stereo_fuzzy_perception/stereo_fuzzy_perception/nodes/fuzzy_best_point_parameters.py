@@ -53,7 +53,8 @@ class FuzzyBestPointSettings:
         'sigmas of its top face', 0.1, 20.0)
     smoothing_px: float = parameter(
         _AREA.smoothing_px, 'Heights are averaged over a square of this side in the left image '
-        'before the object test [px]', 1.0, 200.0)
+        'before the object test [px]; when no object stands out, over a square twice as wide',
+        1.0, 200.0)
     min_disparity_sigma_px: float = parameter(
         _AREA.min_disparity_sigma_px,
         'Lower bound of the disparity noise measured on the surface [px]', 0.001, 5.0)

@@ -60,6 +60,10 @@ NO_RULE_FIRED = 'no_rule_fired'
 OUTLINE_MATCHES = 'matches'
 OUTLINE_IMAGE = 'image'
 
+WIDER_SQUARE = 2.0
+"""A pair where nothing stands out as an object over squares of smoothing_px is looked at
+again over squares this many times as wide (plus a pixel, so that the side stays odd)."""
+
 OBJECT_TOP_SIGMAS = 2.0
 """An object's top face stands at least this many sigmas of its points above the surface
 (object_segmentation.choose_object)."""
@@ -328,6 +332,11 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                           ) -> CorrelationArea:
     """Select the object's top surface among matched points (step 1).
 
+    When no region stands out of the surface over squares of smoothing_px, the pair is looked
+    at again over squares WIDER_SQUARE times as wide: a low object on a far rig, wider than
+    the square, whose squares are each too noisy to stand out, stands out over wider ones,
+    with the surface's noise measured over the same squares.
+
     Args:
         points: Matched points, xyz in the camera frame [m].
         world_from_camera: 4x4 pose of that camera frame in `world`.
@@ -346,6 +355,24 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     reason = config.problem()
     if reason:
         raise CorrelationAreaError(reason)
+    area, none_stood_out = _correlation_area(points, world_from_camera, config,
+                                             disparity_shift_px, config.smoothing_px)
+    if not none_stood_out:
+        return area
+    wider_px = WIDER_SQUARE * config.smoothing_px + 1.0
+    wider, none_stood_out_either = _correlation_area(points, world_from_camera, config,
+                                                     disparity_shift_px, wider_px)
+    if none_stood_out_either:
+        return dataclasses.replace(area, reason=f'{area.reason} (nor over squares of '
+                                                 f'{wider_px:g} px)')
+    return wider
+
+
+def _correlation_area(points: MatchedPoints, world_from_camera: np.ndarray, config: AreaConfig,
+                      disparity_shift_px: float, smoothing_px: float
+                      ) -> tuple[CorrelationArea, bool]:
+    """Return find_correlation_area's area with heights averaged over squares of smoothing_px,
+    and whether it was refused because no region of the grid stood out as an object."""
     points_in = len(points)
     pose = np.asarray(world_from_camera, dtype=float)
     xyz = np.ascontiguousarray(points.xyz).reshape(-1, 3)
@@ -379,7 +406,7 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
 
     if valid == 0:
         return refused(NO_POINTS, f'none of {points_in} matched points is finite, in front of '
-                                  'the cameras and inside the workspace box')
+                                  'the cameras and inside the workspace box'), False
     camera_centre = pose[:3, 3]
     near_surface = np.abs(world[2]) <= config.surface_search_m
     if config.min_surface_score and np.any(near_surface) and (
@@ -398,7 +425,7 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
             return refused(NO_POINTS, f'the work surface is plain (its matches score below '
                                       f'min_surface_score={config.min_surface_score:g}) and '
                                       'no match in the workspace box scores that',
-                           surface)
+                           surface), False
     else:
         surface = fit_work_surface(
             world, height_per_disparity(world, camera_centre, disparity,
@@ -422,10 +449,10 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     # noise after the same averaging (MAD of the surface points) is the unit of the test.
     residual_px = heights / per_px
     step = grid_step(u_left, v_left)
-    smoothed = smoothed_on_grid(u_left, v_left, residual_px, step, config.smoothing_px)
+    smoothed = smoothed_on_grid(u_left, v_left, residual_px, step, smoothing_px)
     detected = (plausible_average(u_left, v_left, residual_px,
                                   heights <= config.max_object_height_m, step,
-                                  config.smoothing_px)
+                                  smoothing_px)
                 if config.plausible_average else smoothed)
     on_surface = (np.abs(residual_px) <= INLIER_SIGMAS * surface.disparity_sigma_px) & (
         np.isfinite(detected))
@@ -441,7 +468,7 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     labels, regions = image_regions(u_left, v_left, candidate, step)
     fewest = max(config.min_points, math.ceil(MIN_OBJECT_AREA_PX / step ** 2))
     # Matches in one averaging square of smoothing_px: its share of the area test's count.
-    square_points = float(square_cells(step, config.smoothing_px) ** 2)
+    square_points = float(square_cells(step, smoothing_px) ** 2)
     found = choose_object(labels, regions, z_scores, heights, sigma, config.object_sigmas,
                           OBJECT_TOP_SIGMAS, fewest, square_points, config.area_top_sigmas)
     if found.label == 0:
@@ -456,7 +483,7 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                   f'of its points high and {fewest} points' + area_test)
         return refused(NO_OBJECT, f'no object on the work surface ({surface.source}, '
                                   f'disparity noise {surface.disparity_sigma_px:.2f} px): '
-                                  + detail, surface, regions, found.median_sigmas)
+                                  + detail, surface, regions, found.median_sigmas), True
     member = labels == found.label
     top = found.top_m
     # The face: points near the region, within the band of the top, whose neighbourhood
@@ -464,7 +491,7 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     # the face, so the face's rim is found where it is, not where noise cut the region; the
     # surface around a low object and the foot of a side wall stay out even when their noise
     # reaches the band.
-    near = grown_region(u_left, v_left, member, step, config.smoothing_px)
+    near = grown_region(u_left, v_left, member, step, smoothing_px)
     # The face's own noise: a textured top can be matched worse than the surface (and has
     # systematic errors of its own); its spread above the top, where no side wall lies, is
     # half of a normal distribution.
@@ -478,19 +505,19 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     if used < config.min_points:
         return refused(TOO_FEW_POINTS, f"{used} points on the object's top face, need "
                                        f'min_points={config.min_points}', surface, regions,
-                       found.median_sigmas)
+                       found.median_sigmas), False
     xyz_world = np.ascontiguousarray(world[:, band].T)
     if top > config.max_object_height_m:
         return refused(NO_OBJECT, f'the top face found stands {1000.0 * top:.0f} mm above the '
                                   'work surface, higher than any object '
                                   f'(max_object_height_m={config.max_object_height_m:g})',
-                       surface, regions, found.median_sigmas)
+                       surface, regions, found.median_sigmas), False
     length = across_m(xyz_world[:, :2])
     if length > config.max_object_across_m:
         return refused(NO_OBJECT, f'the top face found is {1000.0 * length:.0f} mm long on the '
                                   'work surface, longer than any object '
                                   f'(max_object_across_m={config.max_object_across_m:g})',
-                       surface, regions, found.median_sigmas)
+                       surface, regions, found.median_sigmas), False
     face_heights = heights[band]
     # The scatter the points' own noise does not explain: a far rig's face scatters by its
     # noise and is still one level face; side-wall, table or badly matched points add to it.
@@ -512,12 +539,12 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                f'({1000.0 * noise:.1f} mm) explains, more than max_top_spread_m='
                f'{config.max_top_spread_m:g}: not measured well enough for a point')
         return dataclasses.replace(refused(UNCERTAIN_TOP, why, surface, regions,
-                                           found.median_sigmas), scattered_face=face)
+                                           found.median_sigmas), scattered_face=face), False
     fill = hull_fill(u_left[band], v_left[band], step)
     if fill < config.min_top_fill:
         in_pieces = refused(UNCERTAIN_TOP, f"the top face's matches fill {100.0 * fill:.0f} % of "
                                            f'its outline in the image, less than min_top_fill='
                                            f'{config.min_top_fill:g}: a face in pieces',
                             surface, regions, found.median_sigmas)
-        return dataclasses.replace(in_pieces, face_in_pieces=face)
-    return face
+        return dataclasses.replace(in_pieces, face_in_pieces=face), False
+    return face, False
