@@ -13,7 +13,8 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     STATUS_OK,
     AreaConfig,
     CorrelationArea,
-    _correlation_area,
+    _measured_points,
+    _object_area,
     find_correlation_area,
 )
 from stereo_fuzzy_perception.core.best_point.object_segmentation import (
@@ -128,8 +129,8 @@ def test_a_low_wide_disc_is_found_over_wider_squares(seed):
     points, left, right = grid_matches(FAR_RIG, disc, 0.25, seed=seed)
     shift = float(left.P[0, 2] - right.P[0, 2])
     pose = FAR_RIG.world_from_left_camera()
-    first, none_stood_out = _correlation_area(points, pose, DEFAULTS, shift,
-                                              DEFAULTS.smoothing_px)
+    first, none_stood_out = _object_area(_measured_points(points, pose, DEFAULTS, shift),
+                                         DEFAULTS, DEFAULTS.smoothing_px)
     assert first.status == NO_OBJECT and none_stood_out, first.reason
     area = find_correlation_area(points, pose, DEFAULTS, shift)
     assert area.status == STATUS_OK, area.reason

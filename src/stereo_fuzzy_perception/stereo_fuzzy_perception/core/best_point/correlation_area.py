@@ -355,24 +355,52 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     reason = config.problem()
     if reason:
         raise CorrelationAreaError(reason)
-    area, none_stood_out = _correlation_area(points, world_from_camera, config,
-                                             disparity_shift_px, config.smoothing_px)
+    measured = _measured_points(points, world_from_camera, config, disparity_shift_px)
+    if isinstance(measured, CorrelationArea):
+        return measured
+    area, none_stood_out = _object_area(measured, config, config.smoothing_px)
     if not none_stood_out:
         return area
     wider_px = WIDER_SQUARE * config.smoothing_px + 1.0
-    wider, none_stood_out_either = _correlation_area(points, world_from_camera, config,
-                                                     disparity_shift_px, wider_px)
+    wider, none_stood_out_either = _object_area(measured, config, wider_px)
     if none_stood_out_either:
         return dataclasses.replace(area, reason=f'{area.reason} (nor over squares of '
                                                  f'{wider_px:g} px)')
     return wider
 
 
-def _correlation_area(points: MatchedPoints, world_from_camera: np.ndarray, config: AreaConfig,
-                      disparity_shift_px: float, smoothing_px: float
-                      ) -> tuple[CorrelationArea, bool]:
-    """Return find_correlation_area's area with heights averaged over squares of smoothing_px,
-    and whether it was refused because no region of the grid stood out as an object."""
+def _refused(status: str, why: str, points_in: int, valid: int,
+             surface: SurfacePlane = ASSUMED_SURFACE, regions: int = 0,
+             sigmas: float = math.nan) -> CorrelationArea:
+    """Return an area without points: status and why say why there is none."""
+    empty = np.zeros(0)
+    return CorrelationArea(status, why, points_in, valid, regions, 0, math.nan, np.zeros((0, 3)),
+                           empty, empty, empty, empty, empty, surface, sigmas)
+
+
+@dataclass(frozen=True)
+class _MeasuredPoints:
+    """A pair's matches in `world` with their heights above the measured work surface: what
+    the object is looked for in, once or twice (find_correlation_area). Arrays are per match."""
+
+    points_in: int
+    valid: int
+    world: np.ndarray  # (3, N) [m]
+    u_left: np.ndarray
+    v_left: np.ndarray
+    u_right: np.ndarray
+    score: np.ndarray
+    disparity: np.ndarray  # [px], the rectification's shift taken out
+    per_px: np.ndarray  # height per pixel of disparity [m]
+    sigma: np.ndarray  # height noise [m]
+    heights: np.ndarray  # above the surface [m]
+    surface: SurfacePlane
+
+
+def _measured_points(points: MatchedPoints, world_from_camera: np.ndarray, config: AreaConfig,
+                     disparity_shift_px: float) -> _MeasuredPoints | CorrelationArea:
+    """Return the matches in the workspace with their heights above the measured surface, or
+    the refusal when none can be used."""
     points_in = len(points)
     pose = np.asarray(world_from_camera, dtype=float)
     xyz = np.ascontiguousarray(points.xyz).reshape(-1, 3)
@@ -396,17 +424,9 @@ def _correlation_area(points: MatchedPoints, world_from_camera: np.ndarray, conf
         u_left, v_left, u_right, score, disparity = (
             column[in_front] for column in (u_left, v_left, u_right, score, disparity))
     valid = len(selected)
-
-    def refused(status: str, why: str, surface: SurfacePlane = ASSUMED_SURFACE,
-                regions: int = 0, sigmas: float = math.nan) -> CorrelationArea:
-        empty = np.zeros(0)
-        return CorrelationArea(status, why, points_in, valid, regions, 0, math.nan,
-                               np.zeros((0, 3)), empty, empty, empty, empty, empty, surface,
-                               sigmas)
-
     if valid == 0:
-        return refused(NO_POINTS, f'none of {points_in} matched points is finite, in front of '
-                                  'the cameras and inside the workspace box'), False
+        return _refused(NO_POINTS, f'none of {points_in} matched points is finite, in front of '
+                                   'the cameras and inside the workspace box', points_in, valid)
     camera_centre = pose[:3, 3]
     near_surface = np.abs(world[2]) <= config.surface_search_m
     if config.min_surface_score and np.any(near_surface) and (
@@ -422,10 +442,10 @@ def _correlation_area(points: MatchedPoints, world_from_camera: np.ndarray, conf
         surface = SurfacePlane(SURFACE_PLAIN, 0.0, 0.0, 0.0, max(
             config.assumed_disparity_sigma_px, config.min_disparity_sigma_px), 0)
         if not len(selected):
-            return refused(NO_POINTS, f'the work surface is plain (its matches score below '
-                                      f'min_surface_score={config.min_surface_score:g}) and '
-                                      'no match in the workspace box scores that',
-                           surface), False
+            return _refused(NO_POINTS, f'the work surface is plain (its matches score below '
+                                       f'min_surface_score={config.min_surface_score:g}) and '
+                                       'no match in the workspace box scores that',
+                            points_in, valid, surface)
     else:
         surface = fit_work_surface(
             world, height_per_disparity(world, camera_centre, disparity,
@@ -444,6 +464,24 @@ def _correlation_area(points: MatchedPoints, world_from_camera: np.ndarray, conf
         u_left, v_left, u_right, score, disparity, per_px, sigma, heights = (
             column[possible] for column in (u_left, v_left, u_right, score, disparity, per_px,
                                             sigma, heights))
+    return _MeasuredPoints(points_in, valid, world, u_left, v_left, u_right, score, disparity,
+                           per_px, sigma, heights, surface)
+
+
+def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: float
+                 ) -> tuple[CorrelationArea, bool]:
+    """Return the object's top face with heights averaged over squares of smoothing_px (or
+    why there is none), and whether it was refused because no region of the grid stood out as
+    an object."""
+    m = measured
+    points_in, valid, world, surface = m.points_in, m.valid, m.world, m.surface
+    u_left, v_left, u_right, score, disparity, per_px, sigma, heights = (
+        m.u_left, m.v_left, m.u_right, m.score, m.disparity, m.per_px, m.sigma, m.heights)
+
+    def refused(status: str, why: str, surface: SurfacePlane = ASSUMED_SURFACE,
+                regions: int = 0, sigmas: float = math.nan) -> CorrelationArea:
+        return _refused(status, why, points_in, valid, surface, regions, sigmas)
+
     # Heights in disparity pixels have the same noise everywhere; averaged over a square of
     # the image they show an object that one point's noise would hide, and the surface's
     # noise after the same averaging (MAD of the surface points) is the unit of the test.
