@@ -114,6 +114,32 @@ def test_the_right_rectified_image_travels_with_the_matches_too():
     assert stereo_matches_image(_matches_with_image(left, 5, 7), 'right') is None
 
 
+def test_the_matcher_settings_and_point_stride_travel_with_the_matches():
+    from std_msgs.msg import Header
+    from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+    from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+    from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
+    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+    from stereo_fuzzy_perception.nodes.conversions import (
+        stereo_matches_matcher,
+        stereo_matches_message,
+    )
+    from stereo_fuzzy_perception.simulation.synthetic_scenes import rectified_calibration
+
+    config = MatcherConfig(method='plain', window_size=11, min_disparity=7, disparity_range=40,
+                           min_score=0.35, texture_threshold=1.25, uniqueness_ratio=0.1,
+                           lr_check_max_diff=2, subpixel=False, preprocess='edges',
+                           roi=(3, 4, 50, 30))
+    calibration = StereoCalibration(*rectified_calibration(StereoRig(), width=64, height=48))
+    msg = stereo_matches_message(Header(frame_id='left'), calibration, MatchedPoints.empty(),
+                                 config, point_stride=3)
+    assert msg.point_stride == 3
+    assert stereo_matches_matcher(msg) == config
+    msg.window_size = 4
+    with pytest.raises(ValueError, match='window_size 4 must be odd'):
+        stereo_matches_matcher(msg)
+
+
 def test_a_malformed_right_image_is_named_as_the_right_one():
     from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError
     from stereo_fuzzy_perception.nodes.conversions import stereo_matches_image

@@ -326,7 +326,8 @@ class CorrelationNode(Node):
         header = pair.header
         try:
             matches = stereo_matches_message(
-                header, result.rectified, result.points, result.disparity_map.config)
+                header, result.rectified, result.points, result.disparity_map.config,
+                result.point_stride)
             matches.sequence = self.processed + 1
             matches.pair_sequence = pair.sequence
             if timer is not None:

@@ -38,6 +38,7 @@ class StereoMatchResult:
         region: The search region the result comes from; None for the whole image.
         region_problem: Why the search region asked for was not kept (area_search's
             region_problem), '' when it was kept or none was asked for.
+        point_stride: Every point_stride-th row and column of the matches was triangulated.
     """
 
     rectified: StereoCalibration
@@ -46,6 +47,7 @@ class StereoMatchResult:
     timings_ms: dict[str, float] = field(default_factory=dict)
     region: SearchRegion | None = None
     region_problem: str = ''
+    point_stride: int = 1
 
 
 class StereoMatchingPipeline:
@@ -107,7 +109,7 @@ class StereoMatchingPipeline:
             if not problem:
                 return self._finish(rectified, disparity_map, start, rectified_at, matched_at,
                                     timings, _parts_read(left_rect, right_rect, narrowed,
-                                                         calibration), region)
+                                                         calibration), stride, region)
             timings['region'] = 1e3 * (time.perf_counter() - start)
             start = time.perf_counter()
         # after a region, only what its rectification did not cover
@@ -118,8 +120,8 @@ class StereoMatchingPipeline:
                               threads=self.threads)
         matched_at = time.perf_counter()
         return self._finish(rectified, disparity_map, start, rectified_at, matched_at, timings,
-                            _parts_read(left_rect, right_rect, config, calibration), None,
-                            problem)
+                            _parts_read(left_rect, right_rect, config, calibration), stride,
+                            None, problem)
 
     def _rectify(self, left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
                  config: MatcherConfig, continued: bool = False
@@ -141,18 +143,19 @@ class StereoMatchingPipeline:
 
     def _finish(self, rectified: StereoCalibration, disparity_map: DisparityMap, start: float,
                 rectified_at: float, matched_at: float, timings: dict[str, float],
-                images: tuple[RectifiedImage, RectifiedImage], region: SearchRegion | None,
-                problem: str = ''
+                images: tuple[RectifiedImage, RectifiedImage], stride: int,
+                region: SearchRegion | None, problem: str = ''
                 ) -> StereoMatchResult:
-        """Triangulate and return the result with the steps' times."""
-        points = triangulate(disparity_map.disparity, disparity_map.score, rectified,
-                             self.point_stride)
+        """Triangulate every stride-th row and column and return the result with the steps'
+        times."""
+        points = triangulate(disparity_map.disparity, disparity_map.score, rectified, stride)
         points.left_image, points.right_image = images
         done = time.perf_counter()
         timings.update(rectify=1e3 * (rectified_at - start),
                        match=1e3 * (matched_at - rectified_at),
                        triangulate=1e3 * (done - matched_at))
-        return StereoMatchResult(rectified, disparity_map, points, timings, region, problem)
+        return StereoMatchResult(rectified, disparity_map, points, timings, region, problem,
+                                 stride)
 
 
 def _parts_read(left_rect: np.ndarray, right_rect: np.ndarray, config: MatcherConfig,

@@ -39,6 +39,7 @@ from stereo_fuzzy_perception.nodes.conversions.stereo import (
     check_pair_size,
     disparity_image_message,
     stereo_matches_image,
+    stereo_matches_matcher,
     stereo_matches_message,
     stereo_pair_to_domain,
 )
@@ -71,6 +72,7 @@ __all__ = [
     'matched_points_to_cloud',
     'stamp_to_ns',
     'stereo_matches_image',
+    'stereo_matches_matcher',
     'stereo_matches_message',
     'stereo_pair_to_domain',
     'tf_message_to_transforms',

@@ -19,6 +19,7 @@ from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError, to_gray
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
+from stereo_fuzzy_perception.core.matching.matcher_config import MatcherConfig
 from stereo_fuzzy_perception.nodes.conversions.images import (
     ImageSizeError,
     array_to_image,
@@ -31,7 +32,7 @@ from stereo_fuzzy_perception.nodes.conversions.images import (
 from stereo_fuzzy_perception.nodes.conversions.point_cloud import matched_points_to_cloud
 
 if TYPE_CHECKING:  # annotations only
-    from stereo_fuzzy_perception.core.matching.window_matcher import DisparityMap, MatcherConfig
+    from stereo_fuzzy_perception.core.matching.window_matcher import DisparityMap
 
 
 def check_pair_size(pair: StereoPair, max_pixels: int) -> None:
@@ -62,8 +63,12 @@ def stereo_pair_to_domain(pair: StereoPair) -> tuple[np.ndarray, np.ndarray, Ste
 
 
 def stereo_matches_message(header: Header, rectified: StereoCalibration, points: MatchedPoints,
-                           config: MatcherConfig) -> StereoMatches:
-    """Pack triangulated matches, the rectified calibration and the matcher settings."""
+                           config: MatcherConfig, point_stride: int = 0) -> StereoMatches:
+    """Pack triangulated matches, the rectified calibration and the matcher settings.
+
+    point_stride: the points' stride (0: not said; the fuzzy stage then never matches the pair
+    again, stereo_matches_matcher).
+    """
     msg = StereoMatches()
     msg.header = header
     msg.left_info = calibration_to_camera_info(rectified.left, header)
@@ -81,7 +86,34 @@ def stereo_matches_message(header: Header, rectified: StereoCalibration, points:
     msg.window_size = int(config.window_size)
     msg.min_disparity = int(config.min_disparity)
     msg.disparity_range = int(config.disparity_range)
+    msg.min_score = float(config.min_score)
+    msg.texture_threshold = float(config.texture_threshold)
+    msg.uniqueness_ratio = float(config.uniqueness_ratio)
+    msg.lr_check_max_diff = int(config.lr_check_max_diff)
+    msg.subpixel = bool(config.subpixel)
+    msg.preprocess = config.preprocess
+    x, y, width, height = config.roi
+    msg.matched_roi = RegionOfInterest(x_offset=int(x), y_offset=int(y), width=int(width),
+                                       height=int(height))
+    msg.point_stride = int(point_stride)
     return msg
+
+
+def stereo_matches_matcher(msg: StereoMatches) -> MatcherConfig:
+    """Return the matcher settings the matches say they were produced with.
+
+    Raises:
+        MatcherConfigError: Naming the setting that is unusable (a ValueError).
+    """
+    roi = msg.matched_roi
+    return MatcherConfig(
+        method=msg.method, window_size=int(msg.window_size),
+        min_disparity=int(msg.min_disparity), disparity_range=int(msg.disparity_range),
+        min_score=float(msg.min_score), texture_threshold=float(msg.texture_threshold),
+        uniqueness_ratio=float(msg.uniqueness_ratio),
+        lr_check_max_diff=int(msg.lr_check_max_diff), subpixel=bool(msg.subpixel),
+        preprocess=msg.preprocess,
+        roi=(int(roi.x_offset), int(roi.y_offset), int(roi.width), int(roi.height)))
 
 
 def stereo_matches_image(msg: StereoMatches, side: str = 'left') -> RectifiedImage | None:
