@@ -212,3 +212,45 @@ def test_selector_can_be_changed_and_bad_rule_base_is_rejected(harness, tmp_path
     assert "membership function 'less'" in result.reason
     read_only = run.node.set_parameters([Parameter('rig.z0_m', value=0.5)])[0]
     assert not read_only.successful
+
+
+def test_a_face_too_thin_at_stride_3_is_matched_again_at_stride_1(harness):
+    from rclpy.parameter import Parameter
+    from std_msgs.msg import Header
+    from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+    from stereo_fuzzy_perception.nodes.conversions import stereo_matches_message
+    from stereo_fuzzy_perception.simulation.distribution_source import match_scene
+    from stereo_fuzzy_perception.simulation.scene_distribution import split_plan
+
+    # training scene seed 1000019: a printed top left with too few matches at stride 3
+    planned = split_plan('train', 5)[19]
+    scene = match_scene(planned.draw(), (3,))  # only the rows stride 3 keeps, as the node does
+    matched = scene.matched[3]
+    header = Header(frame_id='left_camera_optical_frame')
+    msg = stereo_matches_message(header, StereoCalibration(matched.left, matched.right),
+                                 matched.points, scene.matcher, point_stride=3)
+    rig = planned.rig.rig
+    run = harness({f'rig.{name}': float(getattr(rig, name)) for name in (
+        'baseline_m', 'alpha_deg', 'theta_deg', 'x0_m', 'y0_m', 'z0_m', 'vergence_deg')}
+        | {'second_look_stride_one': False})
+    msg.header.stamp.sec = 1
+    run.send(msg, 1)
+    assert run.decisions[0].status.startswith('too_few_points')
+    assert run.node.set_parameters([Parameter('second_look_stride_one', value=True)])[0].successful
+    msg.header.stamp.sec = 2
+    run.send(msg, 2)
+    assert run.decisions[1].status == 'ok'
+    wait_until(lambda: run.points, TIMEOUT, 'the best point of the second look', run.executor)
+    point = run.points[0].point
+    error = np.linalg.norm(np.array([point.x, point.y, point.z]) - matched.target_world)
+    assert error < 0.003, f'best point {1000 * error:.2f} mm from the top-face centre'
+    assert run.decisions[1].points_in > 8 * len(matched.points), 'decided on stride-1 matches'
+
+    def counted():
+        values = ({kv.key: kv.value for kv in run.diagnostics[-1].status[0].values}
+                  if run.diagnostics else {})
+        return (values.get('matched again at point stride 1') == '1'
+                and values.get('points from matching again') == '1')
+
+    wait_until(counted, TIMEOUT, 'diagnostics counting one second look and its point',
+               run.executor)

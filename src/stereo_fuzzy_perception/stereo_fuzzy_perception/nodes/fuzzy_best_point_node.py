@@ -54,6 +54,7 @@ from stereo_fuzzy_perception.core.best_point.point_selectors import (
     SelectorError,
     load_selector_files,
 )
+from stereo_fuzzy_perception.core.best_point.second_look import decide_with_second_look
 from stereo_fuzzy_perception.core.camera_calibration_file import (
     CalibrationFileError,
     read_calibration_yaml,
@@ -64,6 +65,7 @@ from stereo_fuzzy_perception.core.frame_transforms import (
     RigPoseError,
     Transform,
 )
+from stereo_fuzzy_perception.core.matching.matcher_config import MatcherConfig
 from stereo_fuzzy_perception.core.rig_pose import (
     BASELINE_TOLERANCE_M,
     RIG_PARAMETERS,
@@ -79,6 +81,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     decision_to_markers,
     decision_to_message,
     stereo_matches_image,
+    stereo_matches_matcher,
     tf_message_to_transforms,
 )
 from stereo_fuzzy_perception.nodes.fuzzy_best_point_parameters import FuzzyBestPointSettings
@@ -203,6 +206,9 @@ class FuzzyBestPointNode(Node):
         self.decisions: Counter[str] = Counter({STATUS_OK: 0, **dict.fromkeys(
             REFUSAL_REASONS, 0)})
         self._last_status = 'waiting for input'
+        # Pairs matched again at point stride 1 (second_look_stride_one), and how many of them
+        # gave a point.
+        self.second_looks: Counter[str] = Counter(looked=0, found=0)
         self.matches_sequence = SequenceGaps()
         self.best_point_publisher = self.create_publisher(
             PointStamped, topic_names.BEST_POINT, qos.RESULTS)
@@ -241,6 +247,7 @@ class FuzzyBestPointNode(Node):
         header = Header(stamp=msg.header.stamp, frame_id=self.settings.world.world_frame)
         with self._lock:
             chooser = self._chooser
+            second_look = self.settings.second_look_stride_one
             self.matches_sequence.observe(int(msg.sequence))
         try:
             points = cloud_to_matched_points(msg.points)
@@ -277,8 +284,14 @@ class FuzzyBestPointNode(Node):
             return
         if timer is not None:
             timer.step('decode')
+        matcher = self._matcher_for_second_look(msg) if second_look else None
         try:
-            decision = chooser.decide(points, left, right)
+            looked = decide_with_second_look(chooser, points, left, right, matcher,
+                                             int(msg.point_stride))
+            decision = looked.decision
+            if looked.looked:
+                self.second_looks['looked'] += 1
+                self.second_looks['found'] += decision.status == STATUS_OK
         except Exception as error:  # no input may stop the node; say what happened instead
             self.get_logger().error(f'choosing failed: {error!r}',
                                     throttle_duration_sec=ERROR_THROTTLE_S)
@@ -294,6 +307,20 @@ class FuzzyBestPointNode(Node):
         if timer is not None:
             timer.step('decide')
         self._publish(decision, header, msg.header.frame_id, timer)
+
+    def _matcher_for_second_look(self, msg: StereoMatches) -> MatcherConfig | None:
+        """Return the matcher settings the matches came with, or None (with a warning) when
+        they are unusable: the pair is then decided at its own stride only."""
+        if int(msg.point_stride) <= 1:
+            return None
+        try:
+            return stereo_matches_matcher(msg)
+        except ValueError as error:
+            self.get_logger().warning(
+                f'StereoMatches (stamp {msg.header.stamp.sec}.{msg.header.stamp.nanosec:09d}) '
+                f'carry matcher settings that cannot be used again ({error}): no second look '
+                'at point stride 1 for them', throttle_duration_sec=ERROR_THROTTLE_S)
+            return None
 
     def _baseline_mismatch(self, calibration: StereoCalibration) -> str:
         """Return why every decision is refused (rig.baseline_m vs calibration), or ''.
@@ -380,6 +407,8 @@ class FuzzyBestPointNode(Node):
                                             ('decisions made', made),
                                             ('decisions refused', sum(refused.values()))]
         values += [(f'refused {reason}', count) for reason, count in refused.items()]
+        values += [('matched again at point stride 1', self.second_looks['looked']),
+                   ('points from matching again', self.second_looks['found'])]
         with self._lock:
             values += list(self.matches_sequence.report(topic_names.MATCHES).items())
         # Whether DDS has matched a writer to this reader: 0 while matches are published means

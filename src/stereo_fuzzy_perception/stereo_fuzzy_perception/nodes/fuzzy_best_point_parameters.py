@@ -98,6 +98,12 @@ class FuzzyBestPointSettings:
         '(median correlation score), the surface is plain and matched on sensor noise: only the '
         'matches scoring this are used, and the surface is z = 0 of world as the rig pose puts '
         "it (surface_source 'plain'); 0 = never", 0.0, 0.99)
+    second_look_stride_one: bool = parameter(
+        True, 'When matches of a point_stride above 1 find the object but refuse its top face '
+        'as too thin (too_few_points, uncertain_top), match the pair again at point stride 1 '
+        'from the rectified images and settings that come with them (StereoMatches) and decide '
+        'again: a printed or low-texture top keeps too few matches at a coarse stride. Costs '
+        'one stride-1 match and decision on those pairs only')
     # --- rig pose: a pose file (static_transform_publisher form), /tf_static, or the chapter's
     # alpha, theta, z0 (+ x0, y0, vergence) converted to the same transform (core/rig_pose.py)
     rig_pose_file: str = parameter(

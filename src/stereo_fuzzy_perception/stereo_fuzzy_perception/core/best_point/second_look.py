@@ -1,0 +1,98 @@
+"""A second look at point stride 1, for a pair whose object's face is too thin at a coarser one.
+
+At the demo's point_stride 3 the correlation area can find the object and still refuse its top
+face: too few matches on it (`too_few_points`), or too few to tell its scatter from a side
+wall's (`uncertain_top`). Printed and low-texture tops of 25-40 px are matched only in places,
+and a ninth of those places is not enough. The same pair at stride 1 often gives a point, so the
+pair is matched again at stride 1 from the rectified parts its matches carry
+(core/matching/matched_again.py) and decided again. Only those two refusals get a second look:
+a pair where no object stands out (`no_object`) is refused at stride 1 as it is at stride 3 on
+most pairs, and where it is not the points were no better (the package README, step 1).
+ROS-free.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from stereo_fuzzy_perception.core.best_point.correlation_area import (
+    STATUS_OK,
+    TOO_FEW_POINTS,
+    UNCERTAIN_TOP,
+)
+from stereo_fuzzy_perception.core.best_point.point_selectors import (
+    BestPointChooser,
+    BestPointDecision,
+)
+from stereo_fuzzy_perception.core.camera_model import CameraCalibration, StereoCalibration
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.matching.matched_again import matched_again
+from stereo_fuzzy_perception.core.matching.matcher_config import MatcherInputError
+from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
+
+SECOND_LOOK_STATUSES = (TOO_FEW_POINTS, UNCERTAIN_TOP)
+"""Refusals of a face found too thin at a coarse stride: the ones a second look can change."""
+
+
+@dataclass(frozen=True)
+class SecondLook:
+    """A decision and whether the pair was matched again for it.
+
+    Attributes:
+        decision: The decision to publish: the second look's when it gave a point, else the
+            first (its reason then ends with the second look's).
+        looked: The pair was matched again at stride 1.
+    """
+
+    decision: BestPointDecision
+    looked: bool = False
+
+
+def decide_with_second_look(chooser: BestPointChooser, points: MatchedPoints,
+                            left: CameraCalibration, right: CameraCalibration,
+                            matcher: MatcherConfig | None, point_stride: int,
+                            threads: int | None = None,
+                            at_stride_one: MatchedPoints | None = None) -> SecondLook:
+    """Decide on the matches; at a point stride above 1, look again at stride 1 when the face
+    found is refused as too thin (SECOND_LOOK_STATUSES).
+
+    Args:
+        chooser: The best-point chooser, posed.
+        points: The matches, with the rectified parts the matcher read.
+        left: Rectified calibration of the left image.
+        right: Rectified calibration of the right image.
+        matcher: The matcher settings the points were produced with; None: no second look
+            (unless at_stride_one is given).
+        point_stride: The points' stride; 0 (unknown) or 1: no second look.
+        threads: The matcher's threads for the second look (None: its default).
+        at_stride_one: The same pair's stride-1 matches when already at hand (a tool that
+            matched both strides), used instead of matching again.
+
+    Returns:
+        The decision, and whether the pair was matched again. Image parts or a region that do
+        not fit the rectified images leave the first decision, its reason saying so.
+    """
+    decision = chooser.decide(points, left, right)
+    if point_stride <= 1 or decision.status not in SECOND_LOOK_STATUSES:
+        return SecondLook(decision)
+    again = at_stride_one
+    if again is None:
+        if matcher is None or points.left_image is None or points.right_image is None:
+            return SecondLook(decision)
+        try:
+            again = matched_again(points, StereoCalibration(left, right), matcher, 1, threads)
+        except MatcherInputError as error:  # parts or a region that do not fit the images
+            return SecondLook(replace(decision, reason=f'{decision.reason}; not matched again '
+                                                       f'at point stride 1: {error}'))
+        if again is None:
+            return SecondLook(decision)
+    second = chooser.decide(again, left, right)
+    if second.status == STATUS_OK:
+        return SecondLook(second, looked=True)
+    return SecondLook(_with_second_reason(decision, second), looked=True)
+
+
+def _with_second_reason(first: BestPointDecision, second: BestPointDecision
+                        ) -> BestPointDecision:
+    return replace(first, reason=f'{first.reason}; matched again at point stride 1: '
+                                 f'{second.status}: {second.reason}')
