@@ -59,6 +59,8 @@ for variable in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
 import numpy as np  # noqa: E402
 from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig  # noqa: E402
 from stereo_fuzzy_perception.core.best_point.point_selectors import SELECTORS, BestPointChooser  # noqa: E402
+from stereo_fuzzy_perception.core.best_point.second_look import decide_with_second_look  # noqa: E402
+from stereo_fuzzy_perception.core.matching.matcher_config import MatcherConfig  # noqa: E402
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig, transform_points  # noqa: E402
 from stereo_fuzzy_perception.simulation.distribution_source import (  # noqa: E402
     MatchedDistributionScene,
@@ -96,21 +98,28 @@ def base_choosers(compare: list[str]) -> dict[str, BestPointChooser]:
     return result
 
 
-def decide(chooser: BestPointChooser, scene: SyntheticScene) -> np.ndarray:
-    """Return best point - target [m] of one scene with the scene's rig pose (NaN: no point)."""
+def decide(chooser: BestPointChooser, scene: SyntheticScene, matcher: MatcherConfig | None = None,
+           stride: int = 0) -> np.ndarray:
+    """Return best point - target [m] of one scene with the scene's rig pose (NaN: no point).
+
+    With the matcher settings and the points' stride, a face too thin at a stride above 1 is
+    looked at again at stride 1, as fuzzy_best_point_node does (second_look_stride_one).
+    """
     posed = replace(chooser, world_from_camera=scene.rig.world_from_left_camera())
-    point = posed.decide(scene.points, scene.left, scene.right).best_point_world
+    point = decide_with_second_look(posed, scene.points, scene.left, scene.right, matcher,
+                                    stride).decision.best_point_world
     return np.full(3, np.nan) if point is None else point - scene.target_world
 
 
-def grade(matched: MatchedDistributionScene, choosers: dict[str, BestPointChooser]
-          ) -> dict[tuple[str, int], np.ndarray]:
+def grade(matched: MatchedDistributionScene, choosers: dict[str, BestPointChooser],
+          second_look: bool = True) -> dict[tuple[str, int], np.ndarray]:
     """Return the error [m] of every row (selector, ceiling, OpenCV) at every stride."""
     errors: dict[tuple[str, int], np.ndarray] = {}
     target = next(iter(matched.matched.values())).target_world
+    matcher = matched.matcher if second_look else None
     for stride, scene in matched.matched.items():
         for name, chooser in choosers.items():
-            errors[(name, stride)] = decide(chooser, scene)
+            errors[(name, stride)] = decide(chooser, scene, matcher, stride)
         for name in SELECTOR_ORDER:
             errors[(f'ceiling: {name}', stride)] = decide(choosers[name],
                                                          matched.perfect[stride])
@@ -216,6 +225,9 @@ def main() -> None:
     parser.add_argument('--oversampling', type=int, default=1, choices=(1, 3, 5),
                         help='render each pixel as the mean of K x K (antialiased, as a '
                              "camera's pixel integrates light); 1: TinyRenderer as it is")
+    parser.add_argument('--no-second-look', action='store_true',
+                        help="decide at each stride only, as with fuzzy_best_point_node's "
+                             'second_look_stride_one false')
     parser.add_argument('--output', default=str(ROOT / 'benchmarks' / 'results'))
     args = parser.parse_args()
     if args.quick:
@@ -233,7 +245,8 @@ def main() -> None:
     for index, matched in enumerate(match_plan(plan, strides, ceiling=True, opencv=True,
                                                jobs=args.jobs, oversampling=args.oversampling)):
         scene = matched.scene
-        for (row, stride), error in grade(matched, choosers).items():
+        for (row, stride), error in grade(matched, choosers,
+                                          not args.no_second_look).items():
             results[(row, stride)][scene.object_type].append(error)
             records.append({
                 'row': row, 'stride': stride, 'seed': scene.seed, 'rig': scene.rig.index,

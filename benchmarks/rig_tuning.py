@@ -22,6 +22,10 @@ way for a net gain of two is noise, which the totals alone do not show.
     # ... change the code ...
     nice python benchmarks/rig_tuning.py --per-type 50 --from-scene 20 --against /tmp/before.json
 
+`--second-look` (with `--point-stride 3`) grades what fuzzy_best_point_node gives by default: a
+face found too thin at that stride is decided again on the same pair's stride-1 matches
+(second_look_stride_one), taken from the split's stride-1 cache (rendered once if missing).
+
 `--by-rig` adds the outcomes of the rigs that resolve depth to at most 1 mm per 0.1 px of
 disparity and of the others (rig_breakdown.py gives the same split of the evaluation run).
 
@@ -63,6 +67,9 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (  # noqa: 
 from stereo_fuzzy_perception.core.best_point.point_selectors import (  # noqa: E402
     BestPointChooser,
     disparity_shift,
+)
+from stereo_fuzzy_perception.core.best_point.second_look import (  # noqa: E402
+    decide_with_second_look,
 )
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
 from stereo_fuzzy_perception.simulation.distribution_source import match_plan  # noqa: E402
@@ -220,6 +227,10 @@ def main() -> None:
     parser.add_argument('--save', metavar='FILE', help="write each scene's fuzzy_fitted error")
     parser.add_argument('--against', metavar='FILE',
                         help='list the scenes whose outcome changed since a --save')
+    parser.add_argument('--second-look', action='store_true',
+                        help='at a --point-stride above 1, look again at stride 1 at a face '
+                             'too thin, as fuzzy_best_point_node does (second_look_stride_one); '
+                             "the split's stride-1 matches (cached too) stand for matching again")
     parser.add_argument('--by-rig', action='store_true',
                         help='the outcomes of rigs on either side of 1 mm of depth per 0.1 px '
                              '(rig_breakdown.py)')
@@ -230,6 +241,9 @@ def main() -> None:
         parser.error(f'--against {args.against}: no such file (write one with --save)')
     matched = scenes(args.split, args.per_type, args.point_stride, Path(args.cache), args.jobs,
                      args.oversampling)[args.from_scene * len(OBJECT_TYPES):]
+    at_stride_one = (dict(scenes(args.split, args.per_type, 1, Path(args.cache), args.jobs,
+                                 args.oversampling))
+                     if args.second_look and args.point_stride > 1 else {})
     config = replace(AreaConfig(), **{item.partition('=')[0]: float(item.partition('=')[2])
                                       for item in args.area})
     if args.decompose:
@@ -240,7 +254,11 @@ def main() -> None:
         rows = []
         for label, scene in matched:
             posed = replace(chooser, world_from_camera=scene.rig.world_from_left_camera())
-            decision = posed.decide(scene.points, scene.left, scene.right)
+            fine = at_stride_one.get(label)
+            decision = decide_with_second_look(
+                posed, scene.points, scene.left, scene.right, None,
+                args.point_stride if fine is not None else 1,
+                at_stride_one=fine.points if fine is not None else None).decision
             point = decision.best_point_world
             error = (float('nan') if point is None
                      else 1000.0 * float(np.linalg.norm(point - scene.target_world)))
