@@ -2,12 +2,13 @@
 
 At the demo's point_stride 3 the correlation area can find the object and still refuse its top
 face: too few matches on it (`too_few_points`), or too few to tell its scatter from a side
-wall's (`uncertain_top`). Printed and low-texture tops of 25-40 px are matched only in places,
-and a ninth of those places is not enough. The same pair at stride 1 often gives a point, so the
+wall's (`uncertain_top`). Printed and low-texture tops are matched only in places, and a small
+top keeps a ninth of those places. The same pair at stride 1 often gives a point, so the
 pair is matched again at stride 1 from the rectified parts its matches carry
 (core/matching/matched_again.py) and decided again. Only those two refusals get a second look:
 a pair where no object stands out (`no_object`) is refused at stride 1 as it is at stride 3 on
-most pairs, and where it is not the points were no better (the package README, step 1).
+most pairs, and where it is not the points were no better (the package README, "A second
+look at point stride 1").
 ROS-free.
 """
 

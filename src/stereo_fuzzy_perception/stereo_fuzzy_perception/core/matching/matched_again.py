@@ -1,8 +1,8 @@
 """A pair matched again at another point stride, from the rectified parts its matches carry.
 
-At the demo's point_stride 3 a top face of 25-40 px holds only a ninth of the matches it holds at
-stride 1, and a printed or low-texture top can be left with fewer than min_points of them
-although the same pair at stride 1 gives its point. The fuzzy stage has what it needs to match
+At the demo's point_stride 3 a top face holds only a ninth of the matches it holds at stride 1,
+and a small printed or low-texture top can be left with fewer than min_points of them although
+the same pair at stride 1 gives its point. The fuzzy stage has what it needs to match
 such a pair again, without the raw images: the parts of both rectified images the matcher read
 (StereoMatches' left_rectified and right_rectified), the rectified calibration and the matcher's
 settings. Matched with the same settings over the same region, the pair's stride-1 matches are
