@@ -135,3 +135,21 @@ def test_only_a_face_too_thin_is_looked_at_again(matched, status, looks):
     if looks:  # the first refusal stands, with what the second look found
         assert looked.decision.reason == (f'call 1; matched again at point stride 1: '
                                           f'{status}: call 2')
+
+
+def test_a_pair_matched_in_a_region_is_matched_again_in_it():
+    from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
+    from stereo_fuzzy_perception.simulation.distribution_source import match_scene
+    from stereo_fuzzy_perception.simulation.scene_distribution import split_plan
+
+    split, per_type, index = THIN_AT_STRIDE_3
+    drawn = split_plan(split, per_type)[index].draw()
+    region = MatcherConfig(roi=(150, 100, 320, 240))
+    coarse = match_scene(drawn, (3,), base_matcher=region)  # only stride 3's rows matched
+    fine = match_scene(drawn, (1,), base_matcher=region)
+    s3 = coarse.matched[3]
+    part = s3.points.left_image
+    assert part.pixels.shape[1] < s3.left.width, 'the parts cover the region, not the image'
+    again = matched_again(s3.points, StereoCalibration(s3.left, s3.right), coarse.matcher, 1)
+    np.testing.assert_array_equal(_columns(again), _columns(fine.matched[1].points))
+    assert len(again) > 5 * len(s3.points)
