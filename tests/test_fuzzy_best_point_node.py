@@ -254,3 +254,15 @@ def test_a_face_too_thin_at_stride_3_is_matched_again_at_stride_1(harness):
 
     wait_until(counted, TIMEOUT, 'diagnostics counting one second look and its point',
                run.executor)
+    # A peer's settings that cannot be used again: the pair is decided at its own stride.
+    msg.preprocess, msg.header.stamp.sec = 'sharpen', 3
+    run.send(msg, 3)
+    assert run.decisions[2].status.startswith('too_few_points')
+    assert 'matched again' not in run.decisions[2].status
+    # A region outside the image: the first refusal stands and says why.
+    msg.preprocess, msg.header.stamp.sec = 'none', 4
+    msg.matched_roi.x_offset, msg.matched_roi.width, msg.matched_roi.height = 100_000, 50, 50
+    run.send(msg, 4)
+    assert run.decisions[3].status.startswith('too_few_points')
+    assert 'not matched again at point stride 1' in run.decisions[3].status
+    assert len(run.points) == 1, 'no point from either'
