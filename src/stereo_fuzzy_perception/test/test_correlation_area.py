@@ -399,6 +399,23 @@ def test_a_plain_table_matched_on_noise_leaves_the_object_its_confident_matches(
     assert not every_match.ok or abs(every_match.top_height - 0.03) > 0.001
 
 
+
+@pytest.mark.parametrize('stride', [1, 3])
+def test_a_plain_table_whose_confident_matches_all_float_is_refused_not_an_error(stride):
+    # A bare plain table (rendered, low texture, stride 3) whose only confident matches were
+    # mismatches far above it: nothing is left to look for an object in.
+    points, left, right = grid_matches(RIG, None, 0.1, stride)
+    confident = np.arange(0, len(points), 7)
+    rng = np.random.default_rng(stride)
+    lifted_along_rays(points, confident, rng.uniform(0.15, 0.19, len(confident)))
+    points.score[:] = 0.3  # the table's own matches: sensor noise
+    points.score[confident] = 0.9
+    area = find_correlation_area(points, WORLD_FROM_LEFT, AreaConfig(),
+                                 float(left.P[0, 2] - right.P[0, 2]))
+    assert area.status == NO_POINTS, f'expected no points left, got {area.status}: {area.reason}'
+    assert 'higher above the work surface than any object' in area.reason
+    assert area.surface.source == SURFACE_PLAIN
+
 def test_a_textured_table_is_measured_whatever_some_matches_score():
     box = Box((0.2, 0.15), 0.05, 0.03)
     points, left, right = grid_matches(RIG, box, 0.1, 1)

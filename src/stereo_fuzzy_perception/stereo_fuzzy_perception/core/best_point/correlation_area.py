@@ -464,6 +464,12 @@ def _measured_points(points: MatchedPoints, world_from_camera: np.ndarray, confi
         u_left, v_left, u_right, score, disparity, per_px, sigma, heights = (
             column[possible] for column in (u_left, v_left, u_right, score, disparity, per_px,
                                             sigma, heights))
+        if not len(selected):
+            # a plain surface's few confident matches can all be mismatches floating above it
+            return _refused(NO_POINTS, f'every match left ({len(possible)}) stands higher above '
+                                       'the work surface than any object (max_object_height_m='
+                                       f'{config.max_object_height_m:g}): mismatches',
+                            points_in, valid, surface)
     return _MeasuredPoints(points_in, valid, world, u_left, v_left, u_right, score, disparity,
                            per_px, sigma, heights, surface)
 
