@@ -204,6 +204,13 @@ def test_bad_configuration_names_the_value():
     with pytest.raises(CorrelationAreaError, match='axis y'):
         find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT,
                               AreaConfig(workspace_min=(0, 0.3, 0), workspace_max=(0.4, 0.3, 1)))
+    with pytest.raises(CorrelationAreaError, match='min_object_height_m=-0.001 must not be'):
+        find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT,
+                              AreaConfig(min_object_height_m=-0.001))
+    with pytest.raises(CorrelationAreaError,
+                       match='min_object_height_m=0.1 must be below max_object_height_m=0.1'):
+        find_correlation_area(MatchedPoints.empty(), WORLD_FROM_LEFT,
+                              AreaConfig(min_object_height_m=0.1))
 
 
 def area_of(u, v, ur, world) -> CorrelationArea:

@@ -284,13 +284,21 @@ def test_a_sliver_of_a_face_is_refused_as_narrower_than_any_object():
     assert decision.status == NO_OBJECT, decision.reason
     assert 'narrower than any object (min_object_across_m=0.01)' in decision.reason
     assert decision.best_point_world is None
+    # 132 px of the image: without the width test, the area test refuses it too
     allowed = decide(sliver, left, right, AreaConfig(min_object_across_m=0.0))
-    assert allowed.status == 'ok', allowed.reason
+    assert allowed.status == NO_OBJECT and 'less than any object' in allowed.reason, (
+        allowed.reason)
 
 
 def test_the_smallest_object_is_not_refused_as_too_narrow():
-    small = Box((0.2, 0.15), 0.015, 0.03)
+    # 15 mm across, where its top covers 250 px of the left image; further away, at 186 px,
+    # it covers less than any object may (MIN_OBJECT_AREA_PX): refused for that, not its width
+    small = Box((0.2, 0.05), 0.015, 0.03)
     points, left, right = grid_matches(RIG, small, 0.05, 1, image=True)
     error, decision = error_mm(points, left, right, small)
     assert decision.status == 'ok'
     assert error < 3.0
+    further = Box((0.2, 0.15), 0.015, 0.03)
+    decision = decide(*grid_matches(RIG, further, 0.05, 1, image=True))
+    assert decision.status == NO_OBJECT and 'less than any object' in decision.reason, (
+        decision.reason)

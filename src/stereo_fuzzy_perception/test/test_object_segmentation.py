@@ -21,6 +21,7 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     choose_object,
     plausible_average,
 )
+from stereo_fuzzy_perception.core.best_point.point_selectors import decision_area
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 
@@ -82,6 +83,47 @@ def test_without_the_area_test_only_the_median_counts():
                               5, square_points, area_top_sigmas)
         assert found.label == 0, f'area test off ({square_points}, {area_top_sigmas})'
 
+
+
+def test_no_region_lower_than_the_lowest_object_is_one():
+    # The same region passes both sigma tests with a top of 3.5 mm (the first test above);
+    # below min_top_m it is the surface's own pattern, however far it stands out.
+    kept = choose_object(LABELS, 2, Z_SCORES, heights_with_top(0.0035), SIGMAS, 5.0, 2.0, 5,
+                         SQUARE_POINTS, 3.0, min_top_m=0.003)
+    assert kept.label == 1
+    low = choose_object(LABELS, 2, Z_SCORES, heights_with_top(0.0035), SIGMAS, 5.0, 2.0, 5,
+                        SQUARE_POINTS, 3.0, min_top_m=0.004)
+    assert (low.label, low.objects) == (0, 0)
+
+
+@pytest.mark.parametrize('rig', ['default', 'near'])
+@pytest.mark.parametrize('stride', [1, 3])
+def test_a_flat_label_on_the_table_is_no_object(rig, stride):
+    # 60 mm square, 1.5 mm high, matched with 0.05 px of noise: dozens of sigmas above the
+    # surface on these rigs, and still lower than any object (min_object_height_m, 2 mm).
+    label = Box((0.2, 0.15), 0.06, 0.0015)
+    area = area_in(RIGS[rig], label, 0.05, stride)
+    assert area.status == NO_OBJECT, f'expected no object, got {area.status}: {area.reason}'
+    assert 'min_object_height_m=0.002' in area.reason
+    found = area_in(RIGS[rig], label, 0.05, stride,
+                    config=dataclasses.replace(DEFAULTS, min_object_height_m=0.0))
+    assert found.status == STATUS_OK, f'expected the label found without the limit: {found.reason}'
+
+
+@pytest.mark.parametrize('side_m, refused', [(0.014, True), (0.02, False)])
+def test_a_face_smaller_in_the_image_than_any_object_is_refused(side_m, refused):
+    # On the default rig a 14 mm top covers about 80 px of the left image, a 20 mm one about
+    # 290 px: an object's top covers at least MIN_OBJECT_AREA_PX (200 px), the size of a blob
+    # of mismatches on a bare textured table. The width test (min_object_across_m) is off, so
+    # that only the area decides.
+    rig = RIGS['default']
+    points, left, right = grid_matches(rig, Box((0.2, 0.15), side_m, 0.04), 0.05, 1)
+    area = decision_area(points, left, right, rig.world_from_left_camera(),
+                         dataclasses.replace(DEFAULTS, min_object_across_m=0.0))
+    if refused:
+        assert area.status == NO_OBJECT and 'less than any object' in area.reason, area.reason
+    else:
+        assert area.status == STATUS_OK, area.reason
 
 @settings(max_examples=30, deadline=None)
 @given(rig=st.sampled_from(sorted(RIGS)), stride=st.sampled_from([1, 3]),

@@ -12,6 +12,7 @@ from stereo_fuzzy_perception.simulation.scene_distribution import (
     SCENE_SEED_BASE,
     SPLITS,
     DistributionError,
+    bare_table,
     rig_pool,
     split_plan,
     split_rigs,
@@ -105,6 +106,22 @@ def test_drawn_scenes_are_reproducible_solvable_and_inside_the_ranges(planned):
     elevation = math.degrees(math.asin(scene.lighting.direction[2]))
     assert within(elevation, SETTINGS.light_elevation_deg, 1e-2)
 
+
+
+@pytest.mark.parametrize('planned', split_plan('evaluation', 2),
+                         ids=lambda planned: f'{planned.split}-{planned.seed}')
+def test_a_bare_table_is_the_scene_with_its_object_out_of_every_view(planned):
+    scene = planned.draw()
+    bare = bare_table(scene)
+    rig, camera = scene.rig.rig, scene.rig.camera
+    moved = bare.scene.scene_object.outline_points()
+    for pose in (rig.world_from_left_camera(), rig.world_from_right_camera()):
+        uv = camera.project(pose, moved)
+        seen = (np.isfinite(uv).all(axis=1) & (uv[:, 0] >= 0) & (uv[:, 1] >= 0)
+                & (uv[:, 0] < camera.width) & (uv[:, 1] < camera.height))
+        assert not seen.any(), 'expected the object out of both images'
+    assert replace(bare.scene, scene_object=scene.scene.scene_object) == scene.scene
+    assert replace(bare, scene=scene.scene) == scene
 
 def test_the_distribution_draws_every_texture_family_and_a_spread_of_sensors():
     scenes = [planned.draw() for planned in split_plan('train', 12)]

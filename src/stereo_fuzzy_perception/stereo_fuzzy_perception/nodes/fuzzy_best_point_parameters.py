@@ -75,6 +75,10 @@ class FuzzyBestPointSettings:
         _AREA.max_object_height_m, 'A top face higher than this above the work surface is no '
         'object: refused, not taken; matches higher than this by more than 3 sigmas of their '
         'noise are mismatches, left out [m]', 0.001, 10.0)
+    min_object_height_m: float = parameter(
+        _AREA.min_object_height_m, 'A region whose top stands lower than this above the work '
+        'surface is no object, however far it stands out of the noise [m]; 0 = no limit; '
+        'below max_object_height_m', 0.0, 10.0)
     max_top_spread_m: float = parameter(
         _AREA.max_top_spread_m, 'A top face whose heights scatter more than this beyond what '
         "its points' noise explains (standard deviations, subtracted in squares) is not "
@@ -135,6 +139,7 @@ class FuzzyBestPointSettings:
             min_points=self.min_points, max_object_across_m=self.max_object_across_m,
             min_object_across_m=self.min_object_across_m,
             max_object_height_m=self.max_object_height_m,
+            min_object_height_m=self.min_object_height_m,
             max_top_spread_m=self.max_top_spread_m, min_top_fill=self.min_top_fill,
             outline_from_image=self.outline_from_image,
             min_surface_score=self.min_surface_score)

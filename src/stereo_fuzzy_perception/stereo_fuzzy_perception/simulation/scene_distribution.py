@@ -290,6 +290,19 @@ def draw_scene(split: str, seed: int, rig: DistributionRig, object_type: ObjectT
                      f'in view of {rig.describe()} after {settings.max_attempts} draws')
 
 
+OUT_OF_VIEW_M = 20.0
+"""How far bare_table moves the object along world x [m]: beyond any rig's view."""
+
+
+def bare_table(scene: DistributionScene) -> DistributionScene:
+    """Return the scene with its object moved out of every camera's view: the same table,
+    textures, light, sensor and rig with nothing on the table (what no best point must come
+    from; benchmarks/bare_table_benchmark.py)."""
+    scene_object = replace(scene.scene.scene_object,
+                           x_m=scene.scene.scene_object.x_m + OUT_OF_VIEW_M)
+    return replace(scene, scene=replace(scene.scene, scene_object=scene_object))
+
+
 @dataclass(frozen=True)
 class PlannedScene:
     """Where a split's scene comes from: its seed, object type and rig."""
@@ -321,7 +334,7 @@ def split_plan(split: str, per_type: int, settings: DistributionSettings = DEFAU
             for k in range(first, first + per_type) for t, kind in enumerate(OBJECT_TYPES)]
 
 
-__all__ = ['DEFAULT_SETTINGS', 'SCENE_SEED_BASE', 'SPLITS', 'DistributionError',
-           'DistributionRig', 'DistributionScene', 'DistributionSettings',
-           'PlannedScene', 'draw_rig', 'draw_scene', 'rig_pool',
+__all__ = ['DEFAULT_SETTINGS', 'OUT_OF_VIEW_M', 'SCENE_SEED_BASE', 'SPLITS',
+           'DistributionError', 'DistributionRig', 'DistributionScene', 'DistributionSettings',
+           'PlannedScene', 'bare_table', 'draw_rig', 'draw_scene', 'rig_pool',
            'split_plan', 'split_rigs', 'top_width_px']

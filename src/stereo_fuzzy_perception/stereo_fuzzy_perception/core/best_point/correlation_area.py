@@ -134,6 +134,10 @@ class AreaConfig:
             mismatches (repeated texture matched a period off) floating over the scene. Matches
             higher than this by more than IMPOSSIBLE_HEIGHT_SIGMAS of their noise are left out
             after the surface fit.
+        min_object_height_m: A region whose top stands lower than this above the work surface
+            is no object [m]: the objects stand at least 5 mm high; a lower top that still
+            stands out in sigmas is the surface's own pattern (a bare table on a rig that
+            resolves depth finely). 0 turns the test off.
         max_top_spread_m: A top face whose heights scatter more than this beyond what its
             points' noise explains (sqrt(std^2 - sigma_h^2), sigma_h their median height
             noise) is not measured well enough for a point within millimetres [m]: a level
@@ -172,6 +176,7 @@ class AreaConfig:
     max_object_across_m: float = 0.10
     min_object_across_m: float = 0.01
     max_object_height_m: float = 0.10
+    min_object_height_m: float = 0.002
     max_top_spread_m: float = 0.002
     min_top_fill: float = 0.5
     outline_from_image: bool = True
@@ -190,7 +195,7 @@ class AreaConfig:
             if not getattr(self, name) > 0.0:
                 return f'{name}={getattr(self, name)} must be positive'
         for name in ('max_top_spread_m', 'min_top_fill', 'area_top_sigmas',
-                     'min_object_across_m'):
+                     'min_object_across_m', 'min_object_height_m'):
             if not getattr(self, name) >= 0.0:
                 return f'{name}={getattr(self, name)} must not be negative'
         if not 0.0 <= self.min_surface_score < 1.0:
@@ -198,6 +203,9 @@ class AreaConfig:
         if not self.min_object_across_m < self.max_object_across_m:
             return (f'min_object_across_m={self.min_object_across_m} must be below '
                     f'max_object_across_m={self.max_object_across_m}')
+        if not self.min_object_height_m < self.max_object_height_m:
+            return (f'min_object_height_m={self.min_object_height_m} must be below '
+                    f'max_object_height_m={self.max_object_height_m}')
         if self.object_sigmas < self.surface_margin_sigmas:
             return (f'object_sigmas={self.object_sigmas} must not be below '
                     f'surface_margin_sigmas={self.surface_margin_sigmas}')
@@ -514,7 +522,8 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
     # Matches in one averaging square of smoothing_px: its share of the area test's count.
     square_points = float(square_cells(step, smoothing_px) ** 2)
     found = choose_object(labels, regions, z_scores, heights, sigma, config.object_sigmas,
-                          OBJECT_TOP_SIGMAS, fewest, square_points, config.area_top_sigmas)
+                          OBJECT_TOP_SIGMAS, fewest, square_points, config.area_top_sigmas,
+                          config.min_object_height_m)
     if found.label == 0:
         area_test = (f', or over its n squares of smoothing_px a median of object_sigmas / '
                      f'sqrt(n) and a top area_top_sigmas={config.area_top_sigmas:g} sigmas high'
@@ -524,7 +533,9 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
                   f'{found.points / square_points:.1f} squares) by a median '
                   f'{found.median_sigmas:.1f} sigmas; an object needs '
                   f'object_sigmas={config.object_sigmas:g}, a top {OBJECT_TOP_SIGMAS:g} sigmas '
-                  f'of its points high and {fewest} points' + area_test)
+                  f'of its points high and {fewest} points' + area_test
+                  + (f', and a top at least min_object_height_m={config.min_object_height_m:g}'
+                     if config.min_object_height_m else ''))
         return refused(NO_OBJECT, f'no object on the work surface ({surface.source}, '
                                   f'disparity noise {surface.disparity_sigma_px:.2f} px): '
                                   + detail, surface, regions, found.median_sigmas), True

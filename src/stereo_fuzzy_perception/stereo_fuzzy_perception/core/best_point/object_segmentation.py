@@ -275,7 +275,7 @@ def _principal_sides_m(xy: np.ndarray) -> tuple[float, float]:
 def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights: np.ndarray,
                   sigmas: np.ndarray, object_sigmas: float, top_sigmas: float,
                   min_points: int, square_points: float = 0.0,
-                  area_top_sigmas: float = 0.0) -> ObjectRegion:
+                  area_top_sigmas: float = 0.0, min_top_m: float = 0.0) -> ObjectRegion:
     """Return the region that is an object, or label 0 when none is.
 
     A region is an object when it has min_points points, their median z (heights averaged
@@ -287,8 +287,9 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
     n = points / square_points averaging squares (at least 1) whose median z is below
     object_sigmas is an object when median z * sqrt(n) is object_sigmas and its top stands
     area_top_sigmas above the surface: the averages over n squares are n independent
-    samples of the noise, their median scatters sqrt(n) times less. Of several objects the
-    one with the most points.
+    samples of the noise, their median scatters sqrt(n) times less. Whichever test, its top
+    stands at least min_top_m above the surface. Of several objects the one with the most
+    points.
 
     Args:
         labels: (N,) region of every point (0: none).
@@ -302,6 +303,7 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
         square_points: Points of the grid in one averaging square (0: no area test).
         area_top_sigmas: Lowest top height of an object found by the area test, in sigmas
             of its points (0: no area test).
+        min_top_m: Lowest top height of any object [m] (AreaConfig.min_object_height_m).
     """
     if count == 0:
         return ObjectRegion(0, 0, 0, math.nan, 0)
@@ -328,7 +330,7 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
         region = labels == label
         top = top_height(heights[region], sigmas[region])
         least = top_sigmas if high[label] else max(top_sigmas, area_top_sigmas)
-        if top >= least * float(np.median(sigmas[region])):
+        if top >= max(least * float(np.median(sigmas[region])), min_top_m):
             objects.append((int(sizes[label]), label, top))
     if not objects:
         return ObjectRegion(0, count, 0, float(medians[largest]), int(sizes[largest]))

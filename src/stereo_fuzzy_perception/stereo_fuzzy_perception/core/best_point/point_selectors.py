@@ -28,6 +28,7 @@ import numpy as np
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     ASSUMED_SURFACE,
     DEGENERATE_AREA,
+    MIN_OBJECT_AREA_PX,
     NO_OBJECT,
     NO_RULE_FIRED,
     STATUS_OK,
@@ -51,6 +52,7 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     grid_step,
     hull_fill,
     image_regions,
+    on_pixel_grid,
     width_m,
 )
 from stereo_fuzzy_perception.core.best_point.rule_base import (
@@ -384,8 +386,9 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     the image when the matches bring it (face_outline.py), or why there is none.
 
     Training (area_features) goes through here too, so the fitted selectors learn on the
-    areas they will be given. A face narrower than any object (min_object_across_m) is
-    refused whichever way its outline came.
+    areas they will be given. A face narrower than any object (min_object_across_m) or
+    covering less of the image than any object (MIN_OBJECT_AREA_PX) is refused whichever way
+    its outline came.
     """
     area = find_correlation_area(points, world_from_camera, config, disparity_shift(left, right))
     if points.left_image is not None and config.outline_from_image:
@@ -416,6 +419,17 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
                 f'the top face found is {1000.0 * width:.1f} mm wide on the work surface, '
                 f'narrower than any object (min_object_across_m={config.min_object_across_m:g})'
                 ": a sliver of a face, whose centre is not the face's"))
+    if area.ok and on_pixel_grid(area.u_left) and on_pixel_grid(area.v_left):
+        # counted on the matches' pixel grid (correlation_node's); points from elsewhere
+        # (geometric scenes) have no grid to count an image area on
+        step = grid_step(area.u_left, area.v_left)
+        covered = len(area.u_left) * step ** 2
+        if covered < MIN_OBJECT_AREA_PX:
+            # On a bare textured table a blob of mismatches the size of a correlation window
+            # or two can stand out in sigmas; no object's top is that small in the image.
+            return replace(area, status=NO_OBJECT, reason=(
+                f'the top face found covers {covered:.0f} px of the left image, less than any '
+                f"object's top ({MIN_OBJECT_AREA_PX:g} px): a blob of mismatches, not a face"))
     return area
 
 
