@@ -406,7 +406,6 @@ def test_a_plain_table_matched_on_noise_leaves_the_object_its_confident_matches(
     assert not every_match.ok or abs(every_match.top_height - 0.03) > 0.001
 
 
-
 @pytest.mark.parametrize('stride', [1, 3])
 def test_a_plain_table_whose_confident_matches_all_float_is_refused_not_an_error(stride):
     # A bare plain table (rendered, low texture, stride 3) whose only confident matches were
