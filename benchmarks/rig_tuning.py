@@ -39,6 +39,14 @@ height costs, true pixels at the true height what is left to the matcher's cover
     nice python benchmarks/rig_tuning.py --per-type 15
     nice python benchmarks/rig_tuning.py --per-type 15 --split validation
     nice python benchmarks/rig_tuning.py --per-type 15 --decompose
+
+`--coverage` compares, for each scene given a point, the final area's pixels (the face outlined
+from the image, as every selector gets it) with the pixels that see the true top face: the
+share of the top it misses and the share of the area that is not the top, by outcome and by
+rig group, with where the missed pixels' matches stand (on the top, below it, above it,
+unmatched).
+
+    nice python benchmarks/rig_tuning.py --per-type 50 --coverage
 """
 
 from __future__ import annotations
@@ -66,6 +74,7 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (  # noqa: 
 )
 from stereo_fuzzy_perception.core.best_point.point_selectors import (  # noqa: E402
     BestPointChooser,
+    decision_area,
     disparity_shift,
 )
 from stereo_fuzzy_perception.core.best_point.second_look import (  # noqa: E402
@@ -83,6 +92,9 @@ from benchmarks.rig_breakdown import depth_per_disparity_mm  # noqa: E402
 
 SPLITS = ('train', 'validation')
 """The only splits this script reads: never the evaluation split."""
+
+RESOLUTION_SPLIT_MM = 1.0
+"""Rigs resolving depth to at most this per 0.1 px of disparity are the near ones [mm]."""
 
 
 def scenes(split: str, per_type: int, stride: int, cache: Path, jobs: int,
@@ -127,7 +139,8 @@ def rig_of(label: str) -> int:
 
 
 def outcomes_by_resolution(errors: dict[str, float | None], resolutions: dict[int, float],
-                           tolerance_mm: float, split_mm: float = 1.0) -> list[str]:
+                           tolerance_mm: float, split_mm: float = RESOLUTION_SPLIT_MM
+                           ) -> list[str]:
     """Return the outcome counts of the scenes of rigs at most split_mm and over it.
 
     errors: {label: error [mm] or None}, labels as scenes() makes them ('... rig K ...');
@@ -205,6 +218,88 @@ def decompose(matched: list[tuple[str, SyntheticScene]], config: AreaConfig,
               f'{np.nanmedian(column):.2f} mm')
 
 
+TOP_LEVEL_M = 0.002
+"""A missed top pixel's match within this of the true top height stands on the top."""
+
+
+def top_face_pixels(scene: SyntheticScene, columns: np.ndarray, rows: np.ndarray
+                    ) -> np.ndarray:
+    """Return which left rectified pixels (columns, rows) see the scene's true top face.
+
+    Each pixel's ray (rectified, taken back into the camera's optical frame and into `world`)
+    is cut with the top's plane; the top being the scene's highest surface, a pixel whose ray
+    meets it inside the prism sees it.
+    """
+    pose = scene.rig.world_from_left_camera()
+    projection, rotation = np.asarray(scene.left.P, float), np.asarray(scene.left.R, float)
+    rectified_rays = np.column_stack([(columns - projection[0, 2]) / projection[0, 0],
+                                      (rows - projection[1, 2]) / projection[1, 1],
+                                      np.ones(len(columns))])
+    world_rays = rectified_rays @ rotation @ pose[:3, :3].T
+    centre = pose[:3, 3]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        scale = (scene.prism.height - centre[2]) / world_rays[:, 2]
+    on_top = centre + world_rays * scale[:, None]
+    seen: np.ndarray = (scale > 0) & scene.prism.contains_xy(on_top[:, :2])
+    return seen
+
+
+def coverage_shares(area_pixels: set[tuple[int, int]], top_pixels: set[tuple[int, int]]
+                    ) -> tuple[float, float]:
+    """Return (share of the top's pixels the area misses, share of the area's pixels that are
+    not the top); NaN for an empty top or area."""
+    missed = len(top_pixels - area_pixels) / len(top_pixels) if top_pixels else math.nan
+    extra = len(area_pixels - top_pixels) / len(area_pixels) if area_pixels else math.nan
+    return missed, extra
+
+
+def coverage(matched: list[tuple[str, SyntheticScene]], config: AreaConfig,
+             tolerance_mm: float) -> None:
+    """Print how the final areas of the scenes given a point cover the true top face."""
+    chooser = BestPointChooser.create('fuzzy_fitted', config, StereoRig())
+    groups: dict[tuple[str, str], list[tuple[float, float, np.ndarray]]] = {}
+    for label, scene in matched:
+        pose = scene.rig.world_from_left_camera()
+        posed = replace(chooser, world_from_camera=pose)
+        decision = posed.decide(scene.points, scene.left, scene.right)
+        if decision.best_point_world is None:
+            continue
+        error = 1000.0 * float(np.linalg.norm(decision.best_point_world - scene.target_world))
+        area = decision_area(scene.points, scene.left, scene.right, pose, config)
+        columns, rows = np.rint(area.u_left).astype(int), np.rint(area.v_left).astype(int)
+        box_u, box_v = np.meshgrid(np.arange(columns.min() - 40, columns.max() + 41),
+                                   np.arange(rows.min() - 40, rows.max() + 41))
+        box_u, box_v = box_u.ravel(), box_v.ravel()
+        seen = top_face_pixels(scene, box_u.astype(float), box_v.astype(float))
+        top = set(zip(box_u[seen].tolist(), box_v[seen].tolist(), strict=True))
+        area_set = set(zip(columns.tolist(), rows.tolist(), strict=True))
+        missed, extra = coverage_shares(area_set, top)
+        # where the missed pixels' own matches put them
+        heights = dict(zip(zip(np.rint(scene.points.u_left).astype(int).tolist(),
+                               np.rint(scene.points.v_left).astype(int).tolist(), strict=True),
+                           (scene.points.xyz.astype(float) @ pose[2, :3] + pose[2, 3]).tolist(),
+                           strict=True))
+        levels = np.zeros(4)
+        for pixel in top - area_set:
+            z = heights.get(pixel)
+            levels[3 if z is None else 0 if abs(z - scene.prism.height) <= TOP_LEVEL_M
+                   else 1 if z < scene.prism.height else 2] += 1
+        group = 'near' if depth_per_disparity_mm(rig_of(label)) <= RESOLUTION_SPLIT_MM else 'far'
+        groups.setdefault((group, outcome(error, tolerance_mm)), []).append(
+            (missed, extra, levels))
+    print('the area against the true top, per scene: median share of the top missed / of the '
+          'area not the top; the missed pixels matched on the top, below, above, unmatched')
+    for key in sorted(groups):
+        in_group = groups[key]
+        missed = np.array([row[0] for row in in_group])
+        extra = np.array([row[1] for row in in_group])
+        levels = np.sum([row[2] for row in in_group], axis=0)
+        share = 100.0 * levels / max(levels.sum(), 1.0)
+        print(f'  {key[0]} rigs, {key[1]:8s} ({len(in_group):3d} scenes): missed '
+              f'{np.nanmedian(missed):.2f}, not the top {np.nanmedian(extra):.2f}; missed '
+              f'pixels {share[0]:.0f} / {share[1]:.0f} / {share[2]:.0f} / {share[3]:.0f} %')
+
+
 def main() -> None:
     """Grade the selectors on the cached scenes of the split and list the failures."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -220,6 +315,8 @@ def main() -> None:
     parser.add_argument('--show', type=int, default=25, help='worst scenes listed')
     parser.add_argument('--decompose', action='store_true',
                         help='where the error comes from (module docstring)')
+    parser.add_argument('--coverage', action='store_true',
+                        help='how the final areas cover the true top face (module docstring)')
     parser.add_argument('--area', action='append', default=[], metavar='NAME=VALUE',
                         help='an AreaConfig value other than its default (float)')
     parser.add_argument('--from-scene', type=int, default=0, metavar='K',
@@ -248,6 +345,9 @@ def main() -> None:
                                       for item in args.area})
     if args.decompose:
         decompose(matched, config, args.tolerance_mm)
+        return
+    if args.coverage:
+        coverage(matched, config, args.tolerance_mm)
         return
     for name in ('centroid', 'fuzzy_fitted'):
         chooser = BestPointChooser.create(name, config, StereoRig())
