@@ -1,4 +1,5 @@
-"""The object among the regions above the surface (object_segmentation.py): the area test."""
+"""The object among the regions above the surface (object_segmentation.py): the area test, and
+a textured object on a plain table."""
 
 import dataclasses
 import math
@@ -8,6 +9,7 @@ import pytest
 from grid_scenes import Box, grid_matches
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy import special
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     NO_OBJECT,
     STATUS_OK,
@@ -19,10 +21,13 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
 )
 from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     choose_object,
+    choose_textured_object,
     plausible_average,
+    textured_regions,
 )
 from stereo_fuzzy_perception.core.best_point.point_selectors import decision_area
-from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.best_point.work_surface import SURFACE_PLAIN
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 
 # 0.8 m from the surface along the optical axis, 10 cm baseline (as test_correlation_area)
@@ -238,3 +243,133 @@ def test_plausible_average_finds_a_box_beside_mismatches():
     assert area.status == STATUS_OK, area.reason
     assert area.top_height == pytest.approx(0.03, abs=0.002)
     assert centre_error_m(area, box) < 0.003
+
+
+def plain_table_scene(rig: StereoRig, object_box: Box, lift_m: float, stride: int,
+                      seed: int = 0, textured: bool = True
+                      ) -> tuple[MatchedPoints, float]:
+    """Return matches of a plain table with a textured object, and the disparity shift.
+
+    The object's matches are confident and stand lift_m above the table (0: a printed patch
+    lying on it). The table's windows hold sensor noise: most of its matches score low, and
+    one in six is a confident mismatch anywhere from 20 mm below the table to 60 mm above it,
+    as on the rendered low-texture tables. The left image is plain (sensor noise of 1 grey
+    level) but for the object's pixels, textured unless `textured` is False.
+    """
+    flat = dataclasses.replace(object_box, height=max(lift_m, 1e-4))
+    pixels_grid, left, right = grid_matches(rig, flat, 0.0, 1)
+    pose = rig.world_from_left_camera()
+    grid_world = pixels_grid.xyz @ pose[:3, :3].T + pose[:3, 3]
+    on_object = flat.covers(grid_world[:, 0], grid_world[:, 1])
+    rng = np.random.default_rng(seed)
+    picture = 60.0 + rng.normal(0.0, 1.0, (left.height, left.width))
+    if textured:
+        rows = pixels_grid.v_left[on_object].astype(int)
+        columns = pixels_grid.u_left[on_object].astype(int)
+        picture[rows, columns] += 60.0 + rng.normal(0.0, 25.0, len(rows))
+    image = RectifiedImage(np.clip(picture, 0, 255).astype(np.uint8))
+    points, _, _ = grid_matches(rig, flat, 0.05, stride, seed=seed)
+    points.left_image = image
+    world = points.xyz @ pose[:3, :3].T + pose[:3, 3]
+    table = np.flatnonzero(~flat.covers(world[:, 0], world[:, 1]))
+    mismatches = table[rng.random(len(table)) < 1.0 / 6.0]
+    moved_to_heights(points, pose, mismatches, rng.uniform(-0.02, 0.06, len(mismatches)))
+    points.score[:] = 0.9
+    points.score[np.setdiff1d(table, mismatches)] = rng.uniform(0.25, 0.45,
+                                                                 len(table) - len(mismatches))
+    if lift_m == 0.0:
+        moved_to_heights(points, pose, np.flatnonzero(flat.covers(world[:, 0], world[:, 1])),
+                         0.0)
+    return points, float(left.P[0, 2] - right.P[0, 2])
+
+
+def moved_to_heights(points: MatchedPoints, pose: np.ndarray, chosen: np.ndarray,
+                     heights: np.ndarray | float) -> None:
+    """Move the chosen matches along their rays to the given heights above z = 0 of world."""
+    rays = points.xyz[chosen] @ pose[:3, :3].T
+    scale = (heights - pose[2, 3]) / rays[:, 2]
+    disparity = points.u_left[chosen] - points.u_right[chosen]
+    points.xyz[chosen] *= scale[:, np.newaxis]
+    points.u_right[chosen] = points.u_left[chosen] - disparity / scale
+
+
+@pytest.mark.parametrize('stride', [1, 3])
+def test_a_textured_disc_on_a_plain_table_is_found_in_the_image(stride):
+    # 5 mm high, 50 mm across, 0.8 m away: the plain table's confident mismatches set the
+    # unit of the averaged heights, and the disc does not stand out of it; the image shows it
+    # as the one textured region, and its own matches stand a few mm above the table.
+    disc = Box((0.2, 0.15), 0.05, 0.005, round=True)
+    points, shift = plain_table_scene(FAR_RIG, disc, disc.height, stride)
+    pose = FAR_RIG.world_from_left_camera()
+    without_image = find_correlation_area(dataclasses.replace(points, left_image=None), pose,
+                                          DEFAULTS, shift)
+    assert without_image.status == NO_OBJECT, (
+        f'expected the disc hidden without the image, got {without_image.status}')
+    assert without_image.surface.source == SURFACE_PLAIN
+    area = find_correlation_area(points, pose, DEFAULTS, shift)
+    assert area.status == STATUS_OK, area.reason
+    assert area.top_height == pytest.approx(0.005, abs=0.001)
+    assert centre_error_m(area, disc) < 0.002
+
+
+@pytest.mark.parametrize('stride', [1, 3])
+def test_a_textured_patch_lying_on_a_plain_table_is_no_object(stride):
+    # The same disc's texture printed on the table, and the plain table alone: the textured
+    # region's matches are at the table's height, and a plain image has no textured region.
+    patch = Box((0.2, 0.15), 0.05, 0.005, round=True)
+    pose = FAR_RIG.world_from_left_camera()
+    for lift_m, textured in ((0.0, True), (0.005, False)):
+        points, shift = plain_table_scene(FAR_RIG, patch, lift_m, stride, textured=textured)
+        area = find_correlation_area(points, pose, DEFAULTS, shift)
+        assert area.status == NO_OBJECT, (
+            f'expected no object (lift {lift_m} m, textured {textured}), got {area.status}')
+        assert area.reason.endswith('nor is a textured region of the image, its matches a '
+                                    'median object_sigmas standard errors high)'), area.reason
+
+
+def textured_region_heights(median_m: float, spread_m: float, matches: int = 810
+                            ) -> np.ndarray:
+    """Return heights with the given median and spread (MAD as a standard deviation)."""
+    quantiles = (np.arange(matches) + 0.5) / matches
+    return median_m + spread_m * np.sqrt(2.0) * special.erfinv(2.0 * quantiles - 1.0)
+
+
+@pytest.mark.parametrize('median_m, spread_m, area_px, is_object', [
+    (0.004, 0.002, 900, True),
+    # 810 matches at stride 1 cover ten 9 x 9 windows, ten samples of the noise, not 810:
+    # the standard error is 0.63 mm and 5 of them 3.2 mm
+    (0.0025, 0.002, 900, False),
+    (0.0015, 0.00001, 900, False),  # lower than any object (min_top_m)
+    (0.004, 0.002, 150, False),  # a region smaller in the image than any object's top
+])
+def test_a_textured_region_is_an_object_by_its_height_in_standard_errors(
+        median_m, spread_m, area_px, is_object):
+    heights = textured_region_heights(median_m, spread_m)
+    labels = np.ones(len(heights), dtype=np.int64)
+    found = choose_textured_object(labels, np.array([10_000, area_px]), heights,
+                                   np.full(len(heights), spread_m), 1.0, 9.0, 5.0, 20, 200.0,
+                                   0.002)
+    assert (found.label == 1) == is_object, found
+    if is_object:
+        assert found.top_m == pytest.approx(median_m, abs=0.0005)
+        assert found.median_sigmas == pytest.approx(median_m / (spread_m / math.sqrt(10.0)),
+                                                    rel=0.02)
+
+
+@pytest.mark.parametrize('pixels', [np.zeros((0, 0), np.uint8), np.zeros((4, 5, 3), np.uint8)])
+def test_an_image_without_pixels_or_of_colour_has_no_textured_region(pixels):
+    labels, areas = textured_regions(RectifiedImage(pixels), np.arange(3.0), np.zeros(3))
+    assert not labels.any() and list(areas) == [0]
+
+
+@pytest.mark.parametrize('rig', sorted(RIGS))
+@pytest.mark.parametrize('stride', [1, 3])
+def test_a_bare_textured_table_with_its_image_gives_no_object(rig, stride):
+    # The image is textured everywhere: its textured regions are the table, matched at its
+    # own height, so the image finds no object where the heights found none.
+    points, left, right = grid_matches(RIGS[rig], None, 0.3, stride, seed=2, image=True)
+    assert points.left_image is not None
+    area = find_correlation_area(points, RIGS[rig].world_from_left_camera(), DEFAULTS,
+                                 float(left.P[0, 2] - right.P[0, 2]))
+    assert area.status == NO_OBJECT, f'expected no object, got {area.status}: {area.reason}'
+    assert area.reason.endswith('standard errors high)'), area.reason

@@ -8,7 +8,8 @@ package README:
    (work_surface.py: a robust plane fit), with the pair's disparity noise sigma_d; heights are
    distances from that plane, each with its own sigma_h = sigma_d * height_per_disparity. The
    object is the region of the left image's match grid that stands out of the surface in
-   sigmas, and the correlation area is its top face (object_segmentation.py). The top height
+   sigmas (or, when none does, a textured region of the left image whose own matches stand
+   above it), and the correlation area is its top face (object_segmentation.py). The top height
    is that face's height above the measured surface (z = 0 of `world` by definition), so a
    rig pose a few millimetres off does not move it.
 
@@ -27,6 +28,7 @@ import numpy as np
 from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     across_m,
     choose_object,
+    choose_textured_object,
     grid_step,
     grown_region,
     hull_fill,
@@ -35,6 +37,7 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     plausible_average,
     smoothed_on_grid,
     square_cells,
+    textured_regions,
 )
 from stereo_fuzzy_perception.core.best_point.work_surface import (
     INLIER_SIGMAS,
@@ -45,7 +48,7 @@ from stereo_fuzzy_perception.core.best_point.work_surface import (
     fit_work_surface,
     height_per_disparity,
 )
-from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
 
 # Status codes: why no best point could be chosen (also the diagnostics keys).
 STATUS_OK = 'ok'
@@ -366,14 +369,19 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     measured = _measured_points(points, world_from_camera, config, disparity_shift_px)
     if isinstance(measured, CorrelationArea):
         return measured
-    area, none_stood_out = _object_area(measured, config, config.smoothing_px)
+    # The image's texture is looked at once: it does not depend on the square.
+    area, none_stood_out = _object_area(measured, config, config.smoothing_px,
+                                        points.left_image)
     if not none_stood_out:
         return area
     wider_px = WIDER_SQUARE * config.smoothing_px + 1.0
     wider, none_stood_out_either = _object_area(measured, config, wider_px)
     if none_stood_out_either:
+        textured = (', nor is a textured region of the image, its matches a median '
+                    'object_sigmas standard errors high' if points.left_image is not None
+                    else '')
         return dataclasses.replace(area, reason=f'{area.reason} (nor over squares of '
-                                                 f'{wider_px:g} px)')
+                                                 f'{wider_px:g} px{textured})')
     return wider
 
 
@@ -482,11 +490,12 @@ def _measured_points(points: MatchedPoints, world_from_camera: np.ndarray, confi
                            per_px, sigma, heights, surface)
 
 
-def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: float
-                 ) -> tuple[CorrelationArea, bool]:
+def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: float,
+                 left_image: RectifiedImage | None = None) -> tuple[CorrelationArea, bool]:
     """Return the object's top face with heights averaged over squares of smoothing_px (or
     why there is none), and whether it was refused because no region of the grid stood out as
-    an object."""
+    an object. With the left image, when no region does, a textured region of the image whose
+    matches stand out is an object too."""
     m = measured
     points_in, valid, world, surface = m.points_in, m.valid, m.world, m.surface
     u_left, v_left, u_right, score, disparity, per_px, sigma, heights = (
@@ -524,6 +533,19 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
     found = choose_object(labels, regions, z_scores, heights, sigma, config.object_sigmas,
                           OBJECT_TOP_SIGMAS, fewest, square_points, config.area_top_sigmas,
                           config.min_object_height_m)
+    textured = False
+    if found.label == 0 and left_image is not None:
+        # On a plain surface, or one of sparse marks, the confident matches off the object
+        # include scattered mismatches: they set the unit of the averages above and hide a
+        # low object. A textured object on it shows in the image itself, and its own matches'
+        # scatter is the unit of its height.
+        texture_labels, areas = textured_regions(left_image, u_left, v_left)
+        texture_labels[~(in_box & (world[2] >= config.workspace_min[2]))] = 0
+        textured_found = choose_textured_object(
+            texture_labels, areas, heights, sigma, step, left_image.window_size,
+            config.object_sigmas, fewest, MIN_OBJECT_AREA_PX, config.min_object_height_m)
+        if textured_found.label:
+            labels, found, textured = texture_labels, textured_found, True
     if found.label == 0:
         area_test = (f', or over its n squares of smoothing_px a median of object_sigmas / '
                      f'sqrt(n) and a top area_top_sigmas={config.area_top_sigmas:g} sigmas high'
@@ -546,7 +568,9 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
     # the face, so the face's rim is found where it is, not where noise cut the region; the
     # surface around a low object and the foot of a side wall stay out even when their noise
     # reaches the band.
-    near = grown_region(u_left, v_left, member, step, smoothing_px)
+    # A textured region is the object's image already; beyond it lie the plain surface's
+    # mismatches, some at the top's height by chance.
+    near = member if textured else grown_region(u_left, v_left, member, step, smoothing_px)
     # The face's own noise: a textured top can be matched worse than the surface (and has
     # systematic errors of its own); its spread above the top, where no side wall lies, is
     # half of a normal distribution.
@@ -593,13 +617,16 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
                f"deviation), {1000.0 * excess:.1f} mm beyond what its points' noise "
                f'({1000.0 * noise:.1f} mm) explains, more than max_top_spread_m='
                f'{config.max_top_spread_m:g}: not measured well enough for a point')
+        # The plain-top fallbacks (face_outline.py) would take the plain pixels around a
+        # textured object, the surface, for its face.
         return dataclasses.replace(refused(UNCERTAIN_TOP, why, surface, regions,
-                                           found.median_sigmas), scattered_face=face), False
+                                           found.median_sigmas),
+                                   scattered_face=None if textured else face), False
     fill = hull_fill(u_left[band], v_left[band], step)
     if fill < config.min_top_fill:
         in_pieces = refused(UNCERTAIN_TOP, f"the top face's matches fill {100.0 * fill:.0f} % of "
                                            f'its outline in the image, less than min_top_fill='
                                            f'{config.min_top_fill:g}: a face in pieces',
                             surface, regions, found.median_sigmas)
-        return dataclasses.replace(in_pieces, face_in_pieces=face), False
+        return dataclasses.replace(in_pieces, face_in_pieces=None if textured else face), False
     return face, False

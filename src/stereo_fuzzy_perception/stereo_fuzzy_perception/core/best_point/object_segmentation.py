@@ -16,6 +16,11 @@ same thresholds hold near and far:
    above the surface (the area test: a low disc on a far rig, a box whose region is half the
    table around it). Of several objects the one with the most points is kept; none means no
    object, whatever the noise did.
+   On a plain work surface, or one of sparse marks, the confident matches off the object
+   include scattered mismatches, which set the noise unit of step 3 and hide a low object.
+   When no region is an object, the object is also looked for where the left image has
+   texture (textured_regions, choose_textured_object): a textured region is an object when
+   its matches' median height stands `object_sigmas` standard errors above the surface.
 4. The top face: the highest dense level of the region's heights (bins of one sigma, a bin is
    dense when it holds TOP_DENSE_SHARE of the fullest), refined to the median of the heights
    within TOP_WINDOW_SIGMAS of it. The correlation area is the region's points within
@@ -29,15 +34,33 @@ import contextlib
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from scipy import ndimage
 from scipy.spatial import ConvexHull, QhullError
+
+from stereo_fuzzy_perception.core.best_point.work_surface import MAD_SCALE
+from stereo_fuzzy_perception.core.matched_points import RectifiedImage
 
 TOP_DENSE_SHARE = 0.25
 """A height bin belongs to the object's top when it holds this share of the fullest bin."""
 
 TOP_WINDOW_SIGMAS = 2.0
 """The top height is the median of the heights within this many sigmas of the dense top bin."""
+
+TEXTURE_CONTRAST = 3.0
+"""A pixel is textured when the grey levels' standard deviation over a correlation window
+around it is this many times the TEXTURE_REFERENCE_PERCENTILE of the image's: on a plain work
+surface that is the surface's own (sensor noise and faint marks); on a textured one the
+surface is textured nearly everywhere, and its regions' matches lie on it."""
+
+TEXTURE_REFERENCE_PERCENTILE = 25.0
+"""The image's contrast level the surface's is taken as [%]: a low percentile, so that an
+object filling much of a tracked region's crop does not raise it."""
+
+TEXTURE_OPENING = 2
+"""Openings (3 x 3 px) of the textured pixels: specks and thin lines of the surface's own marks
+go, and a textured region does not join another through them."""
 
 MAX_GRID_CELLS = 4_000_000
 """Largest image grid the regions are found on (a 2000 x 2000 image at point_stride 1)."""
@@ -358,3 +381,84 @@ def top_height(heights: np.ndarray, sigmas: np.ndarray) -> float:
         level = float(np.median(near))
     return level
 
+
+
+def textured_regions(image: RectifiedImage, u: np.ndarray, v: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Label the matches by the textured region of the left image they lie in.
+
+    A pixel is textured when the standard deviation of the grey levels over a correlation
+    window (image.window_size) around it is TEXTURE_CONTRAST times the image's
+    TEXTURE_REFERENCE_PERCENTILE; textured pixels connected in the image (8 neighbours, after
+    TEXTURE_OPENING openings) are a region.
+
+    Args:
+        image: The left rectified image the matches were found in (or the part read).
+        u: (N,) left image column of every match [px].
+        v: (N,) row [px].
+
+    Returns:
+        (labels (N,): 1..n for matches in a region, 0 for the others; areas (n + 1,): each
+        region's pixels, areas[0] the untextured ones).
+    """
+    pixels = np.asarray(image.pixels, dtype=np.float32)
+    if pixels.ndim != 2 or not pixels.size:
+        return np.zeros(len(u), dtype=np.int64), np.zeros(1, dtype=np.int64)
+    box = (max(1, int(image.window_size)),) * 2
+    mean = cv2.blur(pixels, box)
+    contrast = np.sqrt(np.maximum(cv2.blur(pixels * pixels, box) - mean * mean, 0.0))
+    reference = float(np.percentile(contrast, TEXTURE_REFERENCE_PERCENTILE))
+    textured = ndimage.binary_opening(contrast > TEXTURE_CONTRAST * reference,
+                                      structure=_EIGHT_NEIGHBOURS, iterations=TEXTURE_OPENING)
+    region_of_pixel, count = ndimage.label(textured, structure=_EIGHT_NEIGHBOURS)
+    column = np.rint(np.asarray(u, dtype=float)).astype(np.int64) - int(image.x)
+    row = np.rint(np.asarray(v, dtype=float)).astype(np.int64) - int(image.y)
+    inside = (column >= 0) & (row >= 0) & (column < pixels.shape[1]) & (row < pixels.shape[0])
+    labels = np.zeros(len(column), dtype=np.int64)
+    labels[inside] = region_of_pixel[row[inside], column[inside]]
+    return labels, np.bincount(region_of_pixel.reshape(-1), minlength=count + 1)
+
+
+def choose_textured_object(labels: np.ndarray, areas: np.ndarray, heights: np.ndarray,
+                           sigmas: np.ndarray, step: float, window_px: float,
+                           object_sigmas: float, min_points: int, min_area_px: float,
+                           min_top_m: float) -> ObjectRegion:
+    """Return the textured region that is an object, or label 0 when none is.
+
+    A region (textured_regions) of at least min_area_px pixels holding min_points matches is
+    an object when its matches' median height is object_sigmas standard errors above the
+    surface and at least min_top_m. Matches within a correlation window of each other share
+    its errors, so the standard error is the heights' spread (MAD) over the square root of
+    the windows the matches cover (each match standing for step x step pixels), not of the
+    matches. Of several objects the one with the most matches; its top is top_height.
+
+    Args:
+        labels: (N,) textured region of every match (0: none).
+        areas: (n + 1,) pixels of each region.
+        heights: (N,) heights above the surface [m].
+        sigmas: (N,) their standard deviations [m].
+        step: Grid spacing of the matches [px] (grid_step).
+        window_px: Side of the correlation window [px].
+        object_sigmas: Lowest median height of an object, in standard errors.
+        min_points: Fewest matches of an object.
+        min_area_px: Fewest pixels of an object's region.
+        min_top_m: Lowest median height of an object [m].
+    """
+    counts = np.bincount(labels, minlength=len(areas))
+    objects = []
+    for label in np.flatnonzero((counts >= max(min_points, 1)) & (areas >= min_area_px)):
+        if label == 0:
+            continue
+        region = labels == label
+        region_heights = heights[region]
+        median = float(np.median(region_heights))
+        spread = MAD_SCALE * float(np.median(np.abs(region_heights - median)))
+        windows = max(1.0, counts[label] * step ** 2 / window_px ** 2)
+        standard_error = max(spread, 1e-9) / math.sqrt(windows)
+        if median >= max(object_sigmas * standard_error, min_top_m):
+            objects.append((int(counts[label]), int(label), median / standard_error,
+                            top_height(region_heights, sigmas[region])))
+    if not objects:
+        return ObjectRegion(0, len(areas) - 1, 0, math.nan, 0)
+    size, chosen, median_sigmas, top = max(objects)
+    return ObjectRegion(chosen, len(areas) - 1, len(objects), median_sigmas, size, top)
