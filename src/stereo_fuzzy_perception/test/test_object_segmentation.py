@@ -13,11 +13,13 @@ from scipy import special
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     NO_OBJECT,
     STATUS_OK,
+    TOO_FEW_POINTS,
     AreaConfig,
     CorrelationArea,
     _measured_points,
     _object_area,
     find_correlation_area,
+    find_textured_area,
 )
 from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     choose_object,
@@ -27,8 +29,13 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
 )
 from stereo_fuzzy_perception.core.best_point.point_selectors import decision_area
 from stereo_fuzzy_perception.core.best_point.work_surface import SURFACE_PLAIN
+from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+from stereo_fuzzy_perception.simulation.synthetic_scenes import (
+    default_camera_matrix,
+    rectified_calibration,
+)
 
 # 0.8 m from the surface along the optical axis, 10 cm baseline (as test_correlation_area)
 FAR_RIG = StereoRig(baseline_m=0.10, alpha_deg=30.0, x0_m=0.2, y0_m=-0.25,
@@ -373,3 +380,41 @@ def test_a_bare_textured_table_with_its_image_gives_no_object(rig, stride):
                                  float(left.P[0, 2] - right.P[0, 2]))
     assert area.status == NO_OBJECT, f'expected no object, got {area.status}: {area.reason}'
     assert area.reason.endswith('standard errors high)'), area.reason
+
+
+def rectified_pair(rig: StereoRig) -> tuple[CameraCalibration, CameraCalibration]:
+    """Return the left and right rectified calibrations grid_matches uses for rig."""
+    return rectified_calibration(rig, default_camera_matrix(vertical_fov_deg=45.0))
+
+
+@pytest.mark.parametrize('stride', [1, 3])
+def test_a_box_refused_with_the_tables_mismatches_is_found_in_the_image(stride):
+    # 40 mm high on the near rig: the grid's region takes the plain table's mismatches at the
+    # top's height around it, and its face is longer than any object. Refused however the
+    # face is looked at, the pair is looked at as the image's textured regions.
+    box = Box((0.2, 0.15), 0.05, 0.04)
+    rig = RIGS['near']
+    points, shift = plain_table_scene(rig, box, box.height, stride)
+    pose = rig.world_from_left_camera()
+    first = find_correlation_area(points, pose, DEFAULTS, shift)
+    assert first.status == NO_OBJECT and 'longer than any object' in first.reason, first.reason
+    area = decision_area(points, *rectified_pair(rig), pose, DEFAULTS)
+    assert area.status == STATUS_OK, area.reason
+    assert area.top_height == pytest.approx(0.04, abs=0.001)
+    assert centre_error_m(area, box) < 0.002
+    assert find_textured_area(dataclasses.replace(points, left_image=None), pose, DEFAULTS,
+                              shift) is None
+
+
+def test_a_face_too_thin_at_a_coarse_stride_is_left_for_the_second_look():
+    # 20 mm high on the near rig at stride 3: the face is found and has too few matches, a
+    # refusal that the second look at stride 1 (second_look.py) answers with better matches
+    # than the image's textured region at this stride.
+    box = Box((0.2, 0.15), 0.05, 0.02)
+    rig = RIGS['near']
+    points, shift = plain_table_scene(rig, box, box.height, 3)
+    pose = rig.world_from_left_camera()
+    area = decision_area(points, *rectified_pair(rig), pose, DEFAULTS)
+    assert area.status == TOO_FEW_POINTS, area.reason
+    textured = find_textured_area(points, pose, DEFAULTS, shift)
+    assert textured is not None and textured.ok, 'expected the textured region there'

@@ -26,6 +26,7 @@ import numba
 import numpy as np
 
 from stereo_fuzzy_perception.core.best_point.object_segmentation import (
+    ObjectRegion,
     across_m,
     choose_object,
     choose_textured_object,
@@ -385,6 +386,30 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     return wider
 
 
+def find_textured_area(points: MatchedPoints, world_from_camera: np.ndarray,
+                       config: AreaConfig, disparity_shift_px: float = 0.0
+                       ) -> CorrelationArea | None:
+    """Return the object's top face found as a textured region of the left image only
+    (object_segmentation.choose_textured_object), or None when there is none or its face is
+    refused. For a pair whose correlation area was refused however its face was looked at
+    (point_selectors.decision_area): a textured object on a plain or sparsely marked table
+    whose region of the match grid took the table's mismatches with it.
+
+    Args and configuration errors: as find_correlation_area; None without a left image.
+    """
+    reason = config.problem()
+    if reason:
+        raise CorrelationAreaError(reason)
+    if points.left_image is None:
+        return None
+    measured = _measured_points(points, world_from_camera, config, disparity_shift_px)
+    if isinstance(measured, CorrelationArea):
+        return None
+    area, _ = _object_area(measured, config, config.smoothing_px, points.left_image,
+                           textured_only=True)
+    return area if area.ok else None
+
+
 def _refused(status: str, why: str, points_in: int, valid: int,
              surface: SurfacePlane = ASSUMED_SURFACE, regions: int = 0,
              sigmas: float = math.nan) -> CorrelationArea:
@@ -491,11 +516,12 @@ def _measured_points(points: MatchedPoints, world_from_camera: np.ndarray, confi
 
 
 def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: float,
-                 left_image: RectifiedImage | None = None) -> tuple[CorrelationArea, bool]:
+                 left_image: RectifiedImage | None = None, textured_only: bool = False
+                 ) -> tuple[CorrelationArea, bool]:
     """Return the object's top face with heights averaged over squares of smoothing_px (or
     why there is none), and whether it was refused because no region of the grid stood out as
-    an object. With the left image, when no region does, a textured region of the image whose
-    matches stand out is an object too."""
+    an object. With the left image, when no region does (or, textured_only, whatever they
+    do), a textured region of the image whose matches stand out is an object too."""
     m = measured
     points_in, valid, world, surface = m.points_in, m.valid, m.world, m.surface
     u_left, v_left, u_right, score, disparity, per_px, sigma, heights = (
@@ -530,9 +556,10 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
     fewest = max(config.min_points, math.ceil(MIN_OBJECT_AREA_PX / step ** 2))
     # Matches in one averaging square of smoothing_px: its share of the area test's count.
     square_points = float(square_cells(step, smoothing_px) ** 2)
-    found = choose_object(labels, regions, z_scores, heights, sigma, config.object_sigmas,
-                          OBJECT_TOP_SIGMAS, fewest, square_points, config.area_top_sigmas,
-                          config.min_object_height_m)
+    found = (ObjectRegion(0, regions, 0, math.nan, 0) if textured_only else
+             choose_object(labels, regions, z_scores, heights, sigma, config.object_sigmas,
+                           OBJECT_TOP_SIGMAS, fewest, square_points, config.area_top_sigmas,
+                           config.min_object_height_m))
     textured = False
     if found.label == 0 and left_image is not None:
         # On a plain surface, or one of sparse marks, the confident matches off the object

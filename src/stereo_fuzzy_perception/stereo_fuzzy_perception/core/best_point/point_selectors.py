@@ -30,11 +30,15 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     DEGENERATE_AREA,
     MIN_OBJECT_AREA_PX,
     NO_OBJECT,
+    NO_POINTS,
     NO_RULE_FIRED,
     STATUS_OK,
+    TOO_FEW_POINTS,
+    UNCERTAIN_TOP,
     AreaConfig,
     CorrelationArea,
     find_correlation_area,
+    find_textured_area,
 )
 from stereo_fuzzy_perception.core.best_point.face_outline import (
     face_from_image,
@@ -380,6 +384,11 @@ def load_selector_files(rule_base_file: str, weights_file: str) -> None:
         raise SelectorError(str(error)) from error
 
 
+FACE_TOO_THIN = (TOO_FEW_POINTS, UNCERTAIN_TOP)
+"""Refusals of a face found but too thin to measure: at a point stride above 1 the pair is
+looked at again at stride 1 (second_look.py) before its texture is."""
+
+
 def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraCalibration,
                   world_from_camera: np.ndarray, config: AreaConfig) -> CorrelationArea:
     """Return step 1 as every selector sees it: the correlation area, its outline taken from
@@ -388,9 +397,11 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     Training (area_features) goes through here too, so the fitted selectors learn on the
     areas they will be given. A face narrower than any object (min_object_across_m) or
     covering less of the image than any object (MIN_OBJECT_AREA_PX) is refused whichever way
-    its outline came.
+    its outline came. A pair refused after every look at its face is looked at once more as
+    the image's textured regions (correlation_area.find_textured_area).
     """
-    area = find_correlation_area(points, world_from_camera, config, disparity_shift(left, right))
+    shift = disparity_shift(left, right)
+    area = find_correlation_area(points, world_from_camera, config, shift)
     if points.left_image is not None and config.outline_from_image:
         if area.ok:
             area = face_from_image(area, points.left_image, left, right, world_from_camera,
@@ -412,6 +423,14 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
                 area.scattered_face, points.left_image, left, right, world_from_camera,
                 config.min_points, config.max_object_across_m, points.right_image,
                 config.max_object_height_m) or area
+        if not area.ok and area.status != NO_POINTS and (
+                area.status not in FACE_TOO_THIN or grid_step(points.u_left, points.v_left) <= 1):
+            # A textured object on a plain or sparsely marked table can be found with the
+            # table's mismatches around it, and refused for them.
+            textured = find_textured_area(points, world_from_camera, config, shift)
+            if textured is not None:
+                area = face_from_image(textured, points.left_image, left, right,
+                                       world_from_camera, config.min_points) or textured
     if area.ok and config.min_object_across_m > 0.0:
         width = width_m(area.xyz_world[:, :2])
         if width < config.min_object_across_m:

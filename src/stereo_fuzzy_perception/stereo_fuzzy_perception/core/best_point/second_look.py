@@ -16,12 +16,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from stereo_fuzzy_perception.core.best_point.correlation_area import (
-    STATUS_OK,
-    TOO_FEW_POINTS,
-    UNCERTAIN_TOP,
-)
+from stereo_fuzzy_perception.core.best_point.correlation_area import STATUS_OK
 from stereo_fuzzy_perception.core.best_point.point_selectors import (
+    FACE_TOO_THIN,
     BestPointChooser,
     BestPointDecision,
 )
@@ -31,7 +28,7 @@ from stereo_fuzzy_perception.core.matching.matched_again import matched_again
 from stereo_fuzzy_perception.core.matching.matcher_config import MatcherInputError
 from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
 
-SECOND_LOOK_STATUSES = (TOO_FEW_POINTS, UNCERTAIN_TOP)
+SECOND_LOOK_STATUSES = FACE_TOO_THIN
 """Refusals of a face found too thin at a coarse stride: the ones a second look can change."""
 
 
