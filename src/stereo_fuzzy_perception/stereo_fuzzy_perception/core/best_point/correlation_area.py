@@ -378,11 +378,11 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     wider_px = WIDER_SQUARE * config.smoothing_px + 1.0
     wider, none_stood_out_either = _object_area(measured, config, wider_px)
     if none_stood_out_either:
-        textured = (', nor is a textured region of the image, its matches a median '
-                    'object_sigmas standard errors high' if points.left_image is not None
-                    else '')
+        nor_texture = (', nor is a textured region of the image, its matches a median '
+                       'object_sigmas standard errors high' if points.left_image is not None
+                       else '')
         return dataclasses.replace(area, reason=f'{area.reason} (nor over squares of '
-                                                 f'{wider_px:g} px{textured})')
+                                                 f'{wider_px:g} px{nor_texture})')
     return wider
 
 

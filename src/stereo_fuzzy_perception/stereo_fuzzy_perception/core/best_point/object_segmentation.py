@@ -382,7 +382,6 @@ def top_height(heights: np.ndarray, sigmas: np.ndarray) -> float:
     return level
 
 
-
 def textured_regions(image: RectifiedImage, u: np.ndarray, v: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Label the matches by the textured region of the left image they lie in.
