@@ -407,9 +407,14 @@ def textured_regions(image: RectifiedImage, u: np.ndarray, v: np.ndarray
     mean = cv2.blur(pixels, box)
     contrast = np.sqrt(np.maximum(cv2.blur(pixels * pixels, box) - mean * mean, 0.0))
     reference = float(np.percentile(contrast, TEXTURE_REFERENCE_PERCENTILE))
-    textured = ndimage.binary_opening(contrast > TEXTURE_CONTRAST * reference,
-                                      structure=_EIGHT_NEIGHBOURS, iterations=TEXTURE_OPENING)
-    region_of_pixel, count = ndimage.label(textured, structure=_EIGHT_NEIGHBOURS)
+    # OpenCV's opening and labelling: scipy.ndimage's take 40 and 5 times as long here, on
+    # every pair refused for want of an object. Outside the image counts as untextured.
+    textured = cv2.morphologyEx((contrast > TEXTURE_CONTRAST * reference).astype(np.uint8),
+                                cv2.MORPH_OPEN, np.ones((3, 3), np.uint8),
+                                iterations=TEXTURE_OPENING, borderType=cv2.BORDER_CONSTANT,
+                                borderValue=0)
+    count, region_of_pixel = cv2.connectedComponents(textured, connectivity=8)
+    count -= 1  # the background is label 0
     column = np.rint(np.asarray(u, dtype=float)).astype(np.int64) - int(image.x)
     row = np.rint(np.asarray(v, dtype=float)).astype(np.int64) - int(image.y)
     inside = (column >= 0) & (row >= 0) & (column < pixels.shape[1]) & (row < pixels.shape[0])
