@@ -332,6 +332,10 @@ def test_a_textured_patch_lying_on_a_plain_table_is_no_object(stride):
             f'expected no object (lift {lift_m} m, textured {textured}), got {area.status}')
         assert area.reason.endswith('nor is a textured region of the image, its matches a '
                                     'median object_sigmas standard errors high)'), area.reason
+        # the last look (point_selectors.decision_area) would look at the same regions again
+        assert area.texture_tried
+        assert not find_correlation_area(dataclasses.replace(points, left_image=None), pose,
+                                         DEFAULTS, shift).texture_tried
 
 
 def textured_region_heights(median_m: float, spread_m: float, matches: int = 810
@@ -398,6 +402,7 @@ def test_a_box_refused_with_the_tables_mismatches_is_found_in_the_image(stride):
     pose = rig.world_from_left_camera()
     first = find_correlation_area(points, pose, DEFAULTS, shift)
     assert first.status == NO_OBJECT and 'longer than any object' in first.reason, first.reason
+    assert not first.texture_tried, 'a region of the grid stood out: the texture is still to see'
     area = decision_area(points, *rectified_pair(rig), pose, DEFAULTS)
     assert area.status == STATUS_OK, area.reason
     assert area.top_height == pytest.approx(0.04, abs=0.001)

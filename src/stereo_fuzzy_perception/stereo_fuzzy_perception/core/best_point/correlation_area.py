@@ -255,6 +255,9 @@ class CorrelationArea:
             (max_top_spread_m), the face as its matches give it (status ok): a plain top's
             matched heights scatter, and both images may still show its height
             (plain_top_height.py). None otherwise.
+        texture_tried: Refused with no region of the grid standing out, after the left
+            image's textured regions were looked at too: find_textured_area would find
+            nothing more.
     """
 
     status: str
@@ -275,6 +278,7 @@ class CorrelationArea:
     outline: str = OUTLINE_MATCHES
     face_in_pieces: CorrelationArea | None = None
     scattered_face: CorrelationArea | None = None
+    texture_tried: bool = False
 
     def point_weights(self) -> np.ndarray:
         """Return the points' weights (ones when none were given)."""
@@ -382,7 +386,8 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
                        'object_sigmas standard errors high' if points.left_image is not None
                        else '')
         return dataclasses.replace(area, reason=f'{area.reason} (nor over squares of '
-                                                 f'{wider_px:g} px{nor_texture})')
+                                                 f'{wider_px:g} px{nor_texture})',
+                                   texture_tried=points.left_image is not None)
     return wider
 
 

@@ -423,7 +423,7 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
                 area.scattered_face, points.left_image, left, right, world_from_camera,
                 config.min_points, config.max_object_across_m, points.right_image,
                 config.max_object_height_m) or area
-        if not area.ok and area.status != NO_POINTS and (
+        if not area.ok and area.status != NO_POINTS and not area.texture_tried and (
                 area.status not in FACE_TOO_THIN or grid_step(points.u_left, points.v_left) <= 1):
             # A textured object on a plain or sparsely marked table can be found with the
             # table's mismatches around it, and refused for them.
