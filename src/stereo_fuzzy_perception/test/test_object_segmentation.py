@@ -423,3 +423,6 @@ def test_a_face_too_thin_at_a_coarse_stride_is_left_for_the_second_look():
     assert area.status == TOO_FEW_POINTS, area.reason
     textured = find_textured_area(points, pose, DEFAULTS, shift)
     assert textured is not None and textured.ok, 'expected the textured region there'
+    # a row of NaN (a peer's) does not make the stride-3 grid look like stride 1
+    points.u_left[0] = np.nan
+    assert decision_area(points, *rectified_pair(rig), pose, DEFAULTS).status == TOO_FEW_POINTS

@@ -374,7 +374,7 @@ def find_correlation_area(points: MatchedPoints, world_from_camera: np.ndarray,
     measured = _measured_points(points, world_from_camera, config, disparity_shift_px)
     if isinstance(measured, CorrelationArea):
         return measured
-    # The image's texture is looked at once: it does not depend on the square.
+    # The image's texture does not depend on the square: the first look alone sees it.
     area, none_stood_out = _object_area(measured, config, config.smoothing_px,
                                         points.left_image)
     if not none_stood_out:

@@ -424,7 +424,7 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
                 config.min_points, config.max_object_across_m, points.right_image,
                 config.max_object_height_m) or area
         if not area.ok and area.status != NO_POINTS and not area.texture_tried and (
-                area.status not in FACE_TOO_THIN or grid_step(points.u_left, points.v_left) <= 1):
+                area.status not in FACE_TOO_THIN or _matches_step(points) <= 1):
             # A textured object on a plain or sparsely marked table can be found with the
             # table's mismatches around it, and refused for them.
             textured = find_textured_area(points, world_from_camera, config, shift)
@@ -450,6 +450,13 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
                 f'the top face found covers {covered:.0f} px of the left image, less than any '
                 f"object's top ({MIN_OBJECT_AREA_PX:g} px): a blob of mismatches, not a face"))
     return area
+
+
+def _matches_step(points: MatchedPoints) -> float:
+    """Return the grid spacing of the finite matches [px]: a NaN row a peer sent would make
+    any grid look like a stride of 1."""
+    finite = np.isfinite(points.u_left) & np.isfinite(points.v_left)
+    return grid_step(points.u_left[finite], points.v_left[finite])
 
 
 def _outlined_pieces(pieces: CorrelationArea, image: RectifiedImage, left: CameraCalibration,
