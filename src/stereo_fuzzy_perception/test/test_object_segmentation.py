@@ -108,6 +108,29 @@ def test_no_region_lower_than_the_lowest_object_is_one():
     assert (low.label, low.objects) == (0, 0)
 
 
+def tall_plain_object_region() -> np.ndarray:
+    """Return the heights [m] of a region around a tall object with a poorly matched top: the
+    surface at its foot (600 points), wall and mismatches anywhere up to 45 mm (250), and the
+    top's own matches scattered around 48 mm (100)."""
+    rng = np.random.default_rng(7)
+    return np.concatenate([rng.normal(0.0005, 0.0005, 600), rng.uniform(0.002, 0.045, 250),
+                           rng.normal(0.048, 0.0015, 100)])
+
+
+@pytest.mark.parametrize('median_sigmas, is_object', [(30.0, True), (15.0, False)])
+def test_a_tall_region_whose_densest_heights_are_its_foot_has_its_top_from_what_stands_up(
+        median_sigmas, is_object):
+    heights = tall_plain_object_region()
+    found = choose_object(np.ones(len(heights), dtype=np.int64), 1,
+                          np.full(len(heights), median_sigmas), heights,
+                          np.full(len(heights), 0.0005), 5.0, 2.0, 20, 10.0, 3.0, 0.002)
+    # Its densest heights are the surface's: a top of half a millimetre, no object, unless
+    # the region stands out by far more than object_sigmas (TALL_REGION_SHARE times)
+    assert (found.label == 1) == is_object, found
+    if is_object:
+        assert found.top_m == pytest.approx(0.048, abs=0.0015)  # its matches scatter by 1.5 mm
+
+
 @pytest.mark.parametrize('rig', ['default', 'near'])
 @pytest.mark.parametrize('stride', [1, 3])
 def test_a_flat_label_on_the_table_is_no_object(rig, stride):
@@ -365,6 +388,25 @@ def test_a_textured_region_is_an_object_by_its_height_in_standard_errors(
         assert found.top_m == pytest.approx(median_m, abs=0.0005)
         assert found.median_sigmas == pytest.approx(median_m / (spread_m / math.sqrt(10.0)),
                                                     rel=0.02)
+
+
+def test_of_two_textured_objects_the_one_standing_out_most_is_chosen():
+    # A plain table's sparse marks joined into one wide region: many matches, mismatched a
+    # few millimetres up by chance (6 standard errors); beside it the disc's region, fewer
+    # matches standing 12 standard errors out. The wide one's face would be longer than any
+    # object.
+    marks = textured_region_heights(0.0035, 0.003, matches=4000)
+    disc = textured_region_heights(0.005, 0.0013, matches=900)
+    heights = np.concatenate([marks, disc])
+    labels = np.repeat([1, 2], [len(marks), len(disc)])
+    found = choose_textured_object(labels, np.array([100_000, 40_000, 900]), heights,
+                                   np.full(len(heights), 0.002), 1.0, 9.0, 5.0, 20, 200.0,
+                                   0.002)
+    assert found.label == 2, found
+    assert found.objects == 2
+    assert found.points == len(disc)
+    assert found.median_sigmas == pytest.approx(0.005 / (0.0013 / math.sqrt(900 / 81)),
+                                                rel=0.02)
 
 
 @pytest.mark.parametrize('pixels', [np.zeros((0, 0), np.uint8), np.zeros((4, 5, 3), np.uint8)])

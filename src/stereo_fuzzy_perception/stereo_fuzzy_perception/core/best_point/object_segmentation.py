@@ -48,6 +48,15 @@ TOP_DENSE_SHARE = 0.25
 TOP_WINDOW_SIGMAS = 2.0
 """The top height is the median of the heights within this many sigmas of the dense top bin."""
 
+TALL_REGION_SHARE = 4.0
+"""A region whose median stands this many times object_sigmas out, yet whose densest heights
+are the surface's, has its top taken from its points standing OFF_SURFACE_SIGMAS up: a tall
+object whose top is poorly matched (plain, its heights scattered over many bins) and the
+surface at its foot, which the averaging squares took into its region, fills the bins."""
+
+OFF_SURFACE_SIGMAS = 3.0
+"""...those points: this many sigmas of their own (and min_object_height_m) above the surface."""
+
 TEXTURE_CONTRAST = 3.0
 """A pixel is textured when the grey levels' standard deviation over a correlation window
 around it is this many times the TEXTURE_REFERENCE_PERCENTILE of the image's: on a plain work
@@ -311,8 +320,9 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
     object_sigmas is an object when median z * sqrt(n) is object_sigmas and its top stands
     area_top_sigmas above the surface: the averages over n squares are n independent
     samples of the noise, their median scatters sqrt(n) times less. Whichever test, its top
-    stands at least min_top_m above the surface. Of several objects the one with the most
-    points.
+    stands at least min_top_m above the surface. A region standing TALL_REGION_SHARE times
+    object_sigmas out whose top is too low has it measured again from its points standing
+    OFF_SURFACE_SIGMAS up. Of several objects the one with the most points.
 
     Args:
         labels: (N,) region of every point (0: none).
@@ -352,8 +362,13 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
         label = int(passing)
         region = labels == label
         top = top_height(heights[region], sigmas[region])
-        least = top_sigmas if high[label] else max(top_sigmas, area_top_sigmas)
-        if top >= max(least * float(np.median(sigmas[region])), min_top_m):
+        top_in_sigmas = top_sigmas if high[label] else max(top_sigmas, area_top_sigmas)
+        least = max(top_in_sigmas * float(np.median(sigmas[region])), min_top_m)
+        if top < least and medians[label] >= TALL_REGION_SHARE * object_sigmas:
+            standing = region & (heights > np.maximum(OFF_SURFACE_SIGMAS * sigmas, min_top_m))
+            if np.count_nonzero(standing) >= min_points:
+                top = top_height(heights[standing], sigmas[standing])
+        if top >= least:
             objects.append((int(sizes[label]), label, top))
     if not objects:
         return ObjectRegion(0, count, 0, float(medians[largest]), int(sizes[largest]))
@@ -435,7 +450,10 @@ def choose_textured_object(labels: np.ndarray, areas: np.ndarray, heights: np.nd
     surface and at least min_top_m. Matches within a correlation window of each other share
     its errors, so the standard error is the heights' spread (MAD) over the square root of
     the windows the matches cover (each match standing for step x step pixels), not of the
-    matches. Of several objects the one with the most matches; its top is top_height.
+    matches. Of several objects the one standing out by the most standard errors; its top is
+    top_height. Not the one with the most matches: a plain surface's sparse marks can join
+    into one wide textured region whose mismatches stand a few millimetres up by chance, its
+    face then longer than any object, beside the object's own region.
 
     Args:
         labels: (N,) textured region of every match (0: none).
@@ -461,9 +479,9 @@ def choose_textured_object(labels: np.ndarray, areas: np.ndarray, heights: np.nd
         windows = max(1.0, counts[label] * step ** 2 / window_px ** 2)
         standard_error = max(spread, 1e-9) / math.sqrt(windows)
         if median >= max(object_sigmas * standard_error, min_top_m):
-            objects.append((int(counts[label]), int(label), median / standard_error,
+            objects.append((median / standard_error, int(label), int(counts[label]),
                             top_height(region_heights, sigmas[region])))
     if not objects:
         return ObjectRegion(0, len(areas) - 1, 0, math.nan, 0)
-    size, chosen, median_sigmas, top = max(objects)
+    median_sigmas, chosen, size, top = max(objects)
     return ObjectRegion(chosen, len(areas) - 1, len(objects), median_sigmas, size, top)
