@@ -15,9 +15,9 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     find_correlation_area,
 )
 from stereo_fuzzy_perception.core.best_point.face_outline import (
-    _on_top_plane,
     _plain_region,
     face_from_image,
+    on_top_plane,
     plain_face_from_image,
 )
 from stereo_fuzzy_perception.core.best_point.object_segmentation import across_m
@@ -51,7 +51,7 @@ def pixel_floor_mm(box, stride):
     area = find_correlation_area(points, pose, DEFAULTS, float(left.P[0, 2] - right.P[0, 2]))
     world = points.xyz.astype(float) @ pose[:3, :3].T + pose[:3, 3]
     on_top = world[:, 2] > 0.5 * box.height
-    floor = _on_top_plane(area, points.u_left[on_top].astype(float),
+    floor = on_top_plane(area, points.u_left[on_top].astype(float),
                           points.v_left[on_top].astype(float), left, right, pose)
     weight = floor.point_weights()
     centre = (floor.xyz_world * weight[:, None]).sum(axis=0) / weight.sum()

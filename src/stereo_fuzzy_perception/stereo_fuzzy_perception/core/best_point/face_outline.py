@@ -129,7 +129,7 @@ def face_from_image(area: CorrelationArea, image: RectifiedImage, left: CameraCa
     step = grid_step(area.u_left, area.v_left)
     radius = max(1, image.window_size // 2)
     inward = radius + 1.0
-    outline = _hull_outline(area.u_left, area.v_left, step)
+    outline = hull_outline(area.u_left, area.v_left, step)
     if outline is None:
         return None
     margin = int(np.ceil(max(inward, OUTWARD_PX) + 3.0 * SMOOTHING_SIGMA_PX + 2.0))
@@ -144,10 +144,10 @@ def face_from_image(area: CorrelationArea, image: RectifiedImage, left: CameraCa
     moved = _snapped(crop, outline - low, inward)
     if moved is None:
         return None
-    columns, rows = _filled_on_grid(moved + low, step, area.u_left[0], area.v_left[0])
+    columns, rows = filled_on_grid(moved + low, step, area.u_left[0], area.v_left[0])
     if len(columns) < min_points:
         return None
-    return _on_top_plane(area, columns, rows, left, right, world_from_camera)
+    return on_top_plane(area, columns, rows, left, right, world_from_camera)
 
 
 def plain_face_from_image(face: CorrelationArea, image: RectifiedImage,
@@ -214,11 +214,11 @@ def plain_face_from_image(face: CorrelationArea, image: RectifiedImage,
             return None
         face = dataclasses.replace(face, top_height=measured.height_m)
     step = grid_step(face.u_left, face.v_left)
-    on_grid = _filled_on_grid(hull.astype(float) + low + (image.x, image.y), step,
+    on_grid = filled_on_grid(hull.astype(float) + low + (image.x, image.y), step,
                               face.u_left[0], face.v_left[0])
     if len(on_grid[0]) < min_points:
         return None
-    whole = _on_top_plane(face, *on_grid, left, right, world_from_camera)
+    whole = on_top_plane(face, *on_grid, left, right, world_from_camera)
     if whole is None or across_m(whole.xyz_world[:, :2]) > max_across_m:
         return None
     return whole
@@ -280,7 +280,7 @@ def _plain_region(plain: np.ndarray, rows: np.ndarray, columns: np.ndarray, reac
     return hull
 
 
-def _hull_outline(u: np.ndarray, v: np.ndarray, step: float) -> np.ndarray | None:
+def hull_outline(u: np.ndarray, v: np.ndarray, step: float) -> np.ndarray | None:
     """Return the convex hull (K, 2) of the face's matches [px], or None when flat.
 
     Only the largest connected piece of the matches counts: a stray match of the band's
@@ -339,7 +339,7 @@ def _snapped(crop: np.ndarray, hull: np.ndarray, inward: float) -> np.ndarray | 
     return moved
 
 
-def _filled_on_grid(outline: np.ndarray, step: float, u_grid: float, v_grid: float
+def filled_on_grid(outline: np.ndarray, step: float, u_grid: float, v_grid: float
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Return the grid pixels (columns, rows) inside the convex hull of outline [px].
 
@@ -359,7 +359,7 @@ def _filled_on_grid(outline: np.ndarray, step: float, u_grid: float, v_grid: flo
     return columns[on_grid].astype(float), rows[on_grid].astype(float)
 
 
-def _on_top_plane(area: CorrelationArea, columns: np.ndarray, rows: np.ndarray,
+def on_top_plane(area: CorrelationArea, columns: np.ndarray, rows: np.ndarray,
                   left: CameraCalibration, right: CameraCalibration,
                   world_from_camera: np.ndarray) -> CorrelationArea | None:
     """Return the area whose points are the pixels' rays cut with the top face's plane.

@@ -171,7 +171,7 @@ def _plane_disparity(left: CameraCalibration, right: CameraCalibration,
                      ) -> Callable[[np.ndarray, np.ndarray, float | np.ndarray], np.ndarray]:
     """Return f(u, v, height) -> the right image's column of each left pixel (u, v) on the plane
     parallel to the surface at that height, one height or one per pixel (the rays cut as in
-    face_outline._on_top_plane)."""
+    face_outline.on_top_plane)."""
     pose = np.asarray(world_from_camera, dtype=float)
     to_world = pose[:3, :3] @ np.asarray(left.R, dtype=float).reshape(3, 3).T @ np.linalg.inv(
         np.asarray(left.P, dtype=float)[:3, :3])

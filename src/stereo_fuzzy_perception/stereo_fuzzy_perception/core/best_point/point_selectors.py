@@ -40,6 +40,7 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     find_correlation_area,
     find_textured_area,
 )
+from stereo_fuzzy_perception.core.best_point.face_appearance import low_face_from_appearance
 from stereo_fuzzy_perception.core.best_point.face_outline import (
     face_from_image,
     plain_face_from_image,
@@ -398,7 +399,8 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     areas they will be given. A face narrower than any object (min_object_across_m) or
     covering less of the image than any object (MIN_OBJECT_AREA_PX) is refused whichever way
     its outline came. A pair refused after every look at its face is looked at once more as
-    the image's textured regions (correlation_area.find_textured_area).
+    the image's textured regions (correlation_area.find_textured_area). A face that passed
+    it all and stands low has its rim refined from its appearance (face_appearance.py).
     """
     shift = disparity_shift(left, right)
     area = find_correlation_area(points, world_from_camera, config, shift)
@@ -449,6 +451,11 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
             return replace(area, status=NO_OBJECT, reason=(
                 f'the top face found covers {covered:.0f} px of the left image, less than any '
                 f"object's top ({MIN_OBJECT_AREA_PX:g} px): a blob of mismatches, not a face"))
+    if area.ok and points.left_image is not None and config.outline_from_image:
+        # Only a face that passed every test: its appearance refines where its rim lies,
+        # it does not make a sliver or a blob a face.
+        area = low_face_from_appearance(area, points.left_image, left, right,
+                                        world_from_camera, config.min_points) or area
     return area
 
 
