@@ -18,7 +18,7 @@ would join the face):
    region of those pixels that holds most of the core, opened by a pixel, and its convex hull
    (the objects' tops are convex, and so are their images).
 3. Its pixels, on the matches' grid, are cut with the top face's plane as the image outline's
-   are (face_outline.on_top_plane).
+   are (face_outline.face_within).
 
 Where the face's models cannot be taken (a face too small for its core, a face near the edge
 of the image sent, no region holding the core), the face stands as it was. ROS-free: numpy
@@ -33,9 +33,9 @@ import numpy as np
 from stereo_fuzzy_perception.core.best_point.correlation_area import CorrelationArea
 from stereo_fuzzy_perception.core.best_point.face_outline import (
     SUBPIXEL,
-    filled_on_grid,
+    crop_around,
+    face_within,
     hull_outline,
-    on_top_plane,
 )
 from stereo_fuzzy_perception.core.best_point.object_segmentation import grid_step
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
@@ -122,23 +122,17 @@ def low_face_from_appearance(area: CorrelationArea, image: RectifiedImage,
     if outline is None:
         return None
     margin = RING_OUTER_PX + CONTRAST_SIDE_PX + int(np.ceil(3.0 * LIKELIHOOD_SMOOTHING_PX))
-    low = np.floor(outline.min(axis=0)).astype(int) - margin
-    high = np.ceil(outline.max(axis=0)).astype(int) + margin
-    origin = np.array([image.x, image.y])
-    if np.any(low < origin) or np.any(high >= origin + image.pixels.shape[::-1]):
+    around = crop_around(outline, margin, image)
+    if around is None:
         return None  # the surroundings reach past the image sent
-    crop = image.pixels[low[1] - image.y:high[1] - image.y + 1,
-                        low[0] - image.x:high[0] - image.x + 1].astype(np.float32)
+    crop, low = around
     face = np.zeros(crop.shape, np.uint8)
     cv2.fillConvexPoly(face, np.round((outline - low) * (1 << SUBPIXEL)).astype(np.int32), 1,
                        shift=SUBPIXEL)
     hull = _appearance_hull(face, crop)
     if hull is None:
         return None
-    columns, rows = filled_on_grid(hull + low, step, area.u_left[0], area.v_left[0])
-    if len(columns) < min_points:
-        return None
-    return on_top_plane(area, columns, rows, left, right, world_from_camera)
+    return face_within(area, hull + low, step, left, right, world_from_camera, min_points)
 
 
 def _disc(radius: int) -> np.ndarray:

@@ -133,18 +133,37 @@ def face_from_image(area: CorrelationArea, image: RectifiedImage, left: CameraCa
     if outline is None:
         return None
     margin = int(np.ceil(max(inward, OUTWARD_PX) + 3.0 * SMOOTHING_SIGMA_PX + 2.0))
-    low = np.floor(outline.min(axis=0)).astype(int) - margin
-    high = np.ceil(outline.max(axis=0)).astype(int) + margin
-    pixels = image.pixels
-    origin = np.array([image.x, image.y])
-    if np.any(low < origin) or np.any(high >= origin + pixels.shape[::-1]):
+    around = crop_around(outline, margin, image)
+    if around is None:
         return None  # the face reaches past the image sent: the matches' outline stands
-    crop = pixels[low[1] - image.y:high[1] - image.y + 1,
-                  low[0] - image.x:high[0] - image.x + 1].astype(np.float32)
+    crop, low = around
     moved = _snapped(crop, outline - low, inward)
     if moved is None:
         return None
-    columns, rows = filled_on_grid(moved + low, step, area.u_left[0], area.v_left[0])
+    return face_within(area, moved + low, step, left, right, world_from_camera, min_points)
+
+
+def crop_around(outline: np.ndarray, margin: int, image: RectifiedImage
+                ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Return the image's pixels (float32) within margin of an outline's box and the box's
+    corner (column, row) in the rectified image, or None when the box reaches past the image
+    sent."""
+    low = np.floor(outline.min(axis=0)).astype(int) - margin
+    high = np.ceil(outline.max(axis=0)).astype(int) + margin
+    origin = np.array([image.x, image.y])
+    if np.any(low < origin) or np.any(high >= origin + image.pixels.shape[::-1]):
+        return None
+    crop = image.pixels[low[1] - image.y:high[1] - image.y + 1,
+                        low[0] - image.x:high[0] - image.x + 1].astype(np.float32)
+    return crop, low
+
+
+def face_within(area: CorrelationArea, outline: np.ndarray, step: float,
+                left: CameraCalibration, right: CameraCalibration,
+                world_from_camera: np.ndarray, min_points: int) -> CorrelationArea | None:
+    """Return the area whose points are the grid pixels inside outline [px] cut with the top
+    face's plane, or None when fewer than min_points pixels are."""
+    columns, rows = filled_on_grid(outline, step, area.u_left[0], area.v_left[0])
     if len(columns) < min_points:
         return None
     return on_top_plane(area, columns, rows, left, right, world_from_camera)
@@ -213,12 +232,9 @@ def plain_face_from_image(face: CorrelationArea, image: RectifiedImage,
         if measured is None:
             return None
         face = dataclasses.replace(face, top_height=measured.height_m)
-    step = grid_step(face.u_left, face.v_left)
-    on_grid = filled_on_grid(hull.astype(float) + low + (image.x, image.y), step,
-                              face.u_left[0], face.v_left[0])
-    if len(on_grid[0]) < min_points:
-        return None
-    whole = on_top_plane(face, *on_grid, left, right, world_from_camera)
+    whole = face_within(face, hull.astype(float) + low + (image.x, image.y),
+                        grid_step(face.u_left, face.v_left), left, right, world_from_camera,
+                        min_points)
     if whole is None or across_m(whole.xyz_world[:, :2]) > max_across_m:
         return None
     return whole
