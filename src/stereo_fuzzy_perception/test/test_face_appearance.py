@@ -168,3 +168,13 @@ def test_a_mark_of_the_tops_texture_touching_its_rim_pulls_it_out_by_the_reach_o
     assert refined is not None
     # REACH_PX (4 px, a few millimetres on a short arc) of the mark at most joins the face
     assert centre_error_mm(refined, DISC) < 1.2
+
+
+def test_a_face_whose_wall_cannot_be_placed_is_taken_as_tall():
+    points, left, right, on_top = striped_top_scene(DISC)
+    cut, _ = face_cut_at_a_stripe(points, left, right, on_top, cut_px=4)
+    # a top height that is not a number (a peer's garbage that got this far) projects nowhere
+    broken = dataclasses.replace(cut, top_height=float('nan'))
+    assert math.isnan(side_wall_px(broken, left, POSE))
+    assert low_face_from_appearance(broken, points.left_image, left, right, POSE,
+                                    DEFAULTS.min_points) is None

@@ -115,7 +115,8 @@ def low_face_from_appearance(area: CorrelationArea, image: RectifiedImage,
         world_from_camera: 4x4 pose of the left optical frame in `world`.
         min_points: Fewest points of a face (AreaConfig.min_points).
     """
-    if len(area.u_left) < 3 or side_wall_px(area, left, world_from_camera) >= LOW_WALL_PX:
+    # not below the limit: also a wall the projection cannot place (NaN), taken as tall
+    if len(area.u_left) < 3 or not side_wall_px(area, left, world_from_camera) < LOW_WALL_PX:
         return None
     step = grid_step(area.u_left, area.v_left)
     outline = hull_outline(area.u_left, area.v_left, step)
