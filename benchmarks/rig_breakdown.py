@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Break the randomized evaluation down by rig: how far each rig's depth resolution explains it.
+"""Break the randomized evaluation down by rig (how far each rig's depth resolution explains it)
+or by any column of its per-scene CSV (`--by`: the top's width in the image, its texture, ...).
 
 Reads the per-scene CSV that rig_generalisation_benchmark.py wrote (no rendering, no matching:
 seconds) and, for every rig of the split, the rig's depth resolution at the table: the change of
@@ -11,6 +12,7 @@ ceiling and the plain OpenCV pipeline, rig by rig and for the rigs on either sid
 
     source scripts/env.sh
     python benchmarks/rig_breakdown.py
+    python benchmarks/rig_breakdown.py --by top_px      # or object_texture, noise, ...
     python benchmarks/rig_breakdown.py \
         --csv benchmarks/results/rig_generalisation_oversampled3_scenes.csv
 """
@@ -49,16 +51,44 @@ def depth_per_disparity_mm(rig_index: int) -> float:
     return 1000.0 * depth ** 2 / (drawn.camera.focal_px * drawn.rig.baseline_m) * DISPARITY_STEP_PX
 
 
-def within_counts(rows: list[dict[str, str]], tolerance_mm: float
-                  ) -> dict[tuple[str, int, int], tuple[int, int]]:
-    """Return (row name, stride, rig) -> (scenes within tolerance_mm, scenes)."""
-    counts: dict[tuple[str, int, int], list[int]] = defaultdict(lambda: [0, 0])
+def group_counts(rows: list[dict[str, str]], tolerance_mm: float, column: str
+                 ) -> dict[tuple[str, int, str], tuple[int, int]]:
+    """Return (row name, stride, the scene's value in column) -> (scenes within tolerance_mm,
+    scenes)."""
+    counts: dict[tuple[str, int, str], list[int]] = defaultdict(lambda: [0, 0])
     for row in rows:
-        key = (row['row'], int(row['stride']), int(row['rig']))
+        key = (row['row'], int(row['stride']), row[column])
         error = float(row['error_mm']) if row['error_mm'] not in ('', 'nan') else math.nan
         counts[key][0] += int(error <= tolerance_mm)  # NaN (no point) is never within
         counts[key][1] += 1
     return {key: (value[0], value[1]) for key, value in counts.items()}
+
+
+def within_counts(rows: list[dict[str, str]], tolerance_mm: float
+                  ) -> dict[tuple[str, int, int], tuple[int, int]]:
+    """Return (row name, stride, rig) -> (scenes within tolerance_mm, scenes)."""
+    return {(name, stride, int(rig)): value
+            for (name, stride, rig), value in group_counts(rows, tolerance_mm, 'rig').items()}
+
+
+def share(counts: tuple[int, int]) -> str:
+    """Return 'within/total (percent)', or '-' for no scenes."""
+    within, total = counts
+    return f'{within}/{total} ({100.0 * within / total:.0f} %)' if total else '-'
+
+
+def column_table(rows: list[dict[str, str]], column: str, tolerance_mm: float) -> list[str]:
+    """Return the markdown lines of the scenes within tolerance_mm by their value in column
+    (top_px, object_texture, surface_texture, noise, object_type, ...), a line per value."""
+    counts = group_counts(rows, tolerance_mm, column)
+    strides = sorted({int(row['stride']) for row in rows})
+    header = [column] + [f'{name}, stride {stride}' for stride in strides for name in ROWS]
+    lines = ['| ' + ' | '.join(header) + ' |', '|' + '---|' * len(header)]
+    for value in sorted({row[column] for row in rows}):
+        lines.append('| ' + ' | '.join([value] + [
+            share(counts.get((name, stride, value), (0, 0)))
+            for stride in strides for name in ROWS.values()]) + ' |')
+    return lines
 
 
 def table(rows: list[dict[str, str]], resolutions: dict[int, float], tolerance_mm: float,
@@ -74,10 +104,9 @@ def table(rows: list[dict[str, str]], resolutions: dict[int, float], tolerance_m
         out = []
         for stride in strides:
             for name in ROWS.values():
-                within = sum(counts.get((name, stride, rig), (0, 0))[0] for rig in rigs)
-                total = sum(counts.get((name, stride, rig), (0, 0))[1] for rig in rigs)
-                out.append(f'{within}/{total} ({100.0 * within / total:.0f} %)' if total
-                           else '-')
+                out.append(share((
+                    sum(counts.get((name, stride, rig), (0, 0))[0] for rig in rigs),
+                    sum(counts.get((name, stride, rig), (0, 0))[1] for rig in rigs))))
         return out
 
     ordered = sorted(resolutions, key=lambda rig: (resolutions[rig], rig))
@@ -102,6 +131,9 @@ def main() -> None:
     parser.add_argument('--tolerance-mm', type=float, default=3.0)
     parser.add_argument('--resolution-mm', type=float, default=1.0,
                         help='rigs are grouped on either side of this depth resolution')
+    parser.add_argument('--by', metavar='COLUMN',
+                        help='group the scenes by this CSV column instead of by rig '
+                             '(top_px, object_texture, surface_texture, noise, object_type)')
     args = parser.parse_args()
     path = Path(args.csv)
     if not path.is_file():
@@ -110,6 +142,12 @@ def main() -> None:
         rows = [row for row in csv.DictReader(stream) if row['row'] in ROWS.values()]
     if not rows:
         parser.error(f'--csv {path}: no rows of {", ".join(ROWS.values())}')
+    if args.by is not None:
+        if args.by not in rows[0]:
+            parser.error(f'--by {args.by}: no such column; the CSV has {", ".join(rows[0])}')
+        print(f'{path.name}: scenes within {args.tolerance_mm:g} mm by {args.by}\n')
+        print('\n'.join(column_table(rows, args.by, args.tolerance_mm)))
+        return
     resolutions = {rig: depth_per_disparity_mm(rig) for rig in
                    sorted({int(row['rig']) for row in rows})}
     print(f'{path.name}: scenes within {args.tolerance_mm:g} mm by rig '

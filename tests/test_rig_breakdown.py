@@ -2,11 +2,18 @@
 
 import math
 
-from benchmarks.rig_breakdown import ROWS, depth_per_disparity_mm, table, within_counts
+from benchmarks.rig_breakdown import (
+    ROWS,
+    column_table,
+    depth_per_disparity_mm,
+    table,
+    within_counts,
+)
 
 
-def _row(name, stride, rig, error):
-    return {'row': ROWS[name], 'stride': str(stride), 'rig': str(rig), 'error_mm': error}
+def _row(name, stride, rig, error, top_px='24-40 px'):
+    return {'row': ROWS[name], 'stride': str(stride), 'rig': str(rig), 'error_mm': error,
+            'top_px': top_px}
 
 
 def test_a_scene_without_a_point_counts_but_is_never_within():
@@ -35,3 +42,14 @@ def test_a_farther_narrower_rig_resolves_depth_worse():
     near, far = depth_per_disparity_mm(35), depth_per_disparity_mm(37)
     assert math.isfinite(near) and math.isfinite(far)
     assert 0.0 < near < far
+
+
+def test_scenes_are_grouped_by_any_column_a_line_per_value():
+    rows = [_row('fitted rules', 1, 30, '1.0', '40-60 px'), _row('fitted rules', 1, 31, 'nan'),
+            _row('fitted rules', 1, 31, '2.0'), _row('ceiling', 1, 30, '0.5', '40-60 px'),
+            _row('fitted rules', 3, 30, '4.0', '40-60 px')]
+    lines = column_table(rows, 'top_px', 3.0)
+    assert lines[0].startswith('| top_px | fitted rules, stride 1 | ceiling, stride 1 |')
+    # two rigs, one value: the 24-40 px scenes of both rigs together
+    assert lines[2] == ('| 24-40 px | 1/2 (50 %) | - | - | - | - | - |')
+    assert lines[3] == ('| 40-60 px | 1/1 (100 %) | 1/1 (100 %) | - | 0/1 (0 %) | - | - |')
