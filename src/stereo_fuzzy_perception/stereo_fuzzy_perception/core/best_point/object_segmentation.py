@@ -366,7 +366,7 @@ def choose_object(labels: np.ndarray, count: int, z_scores: np.ndarray, heights:
         least = max(top_in_sigmas * float(np.median(sigmas[region])), min_top_m)
         if top < least and medians[label] >= TALL_REGION_SHARE * object_sigmas:
             standing = region & (heights > np.maximum(OFF_SURFACE_SIGMAS * sigmas, min_top_m))
-            if np.count_nonzero(standing) >= min_points:
+            if np.count_nonzero(standing) >= max(min_points, 1):  # top_height needs one
                 top = top_height(heights[standing], sigmas[standing])
         if top >= least:
             objects.append((int(sizes[label]), label, top))
