@@ -12,7 +12,7 @@ ceiling and the plain OpenCV pipeline, rig by rig and for the rigs on either sid
 
     source scripts/env.sh
     python benchmarks/rig_breakdown.py
-    python benchmarks/rig_breakdown.py --by top_px      # or object_texture, noise, ...
+    python benchmarks/rig_breakdown.py --by top_px      # or object_texture, noise, table_bias
     python benchmarks/rig_breakdown.py \
         --csv benchmarks/results/rig_generalisation_oversampled3_scenes.csv
 """

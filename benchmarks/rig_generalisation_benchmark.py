@@ -36,6 +36,10 @@ independently, and the disparities of a textured table scatter by a few tenths o
 from that alone. --oversampling K renders each pixel as the mean of K x K rendered ones (the
 scenes are the same; the results go to files named ..._oversampledK).
 
+Each scene is also labelled with how far the bare table's own matches are off around the
+object at the scale of its top (benchmarks/table_bias.py, the `table_bias` column: the moire of
+the renderer's unfiltered textures, in mm of depth at the object), for the breakdown by it.
+
 Prints markdown and writes <output>/rig_generalisation.md and rig_generalisation_scenes.csv
 (one row per scene and selector, for analysis).
 """
@@ -53,6 +57,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'src' / 'stereo_fuzzy_perception'))
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
 for variable in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ.setdefault(variable, '1')
 
@@ -75,11 +81,16 @@ from stereo_fuzzy_perception.simulation.scene_distribution import (  # noqa: E40
 from stereo_fuzzy_perception.simulation.scene_model import OBJECT_TYPES  # noqa: E402
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene  # noqa: E402
 
+from benchmarks.table_bias import table_bias_mm  # noqa: E402
+
 SELECTOR_ORDER = ('fuzzy_fitted', 'fuzzy_chapter', 'centroid', 'max_score', 'neural_network')
 assert set(SELECTOR_ORDER) == set(SELECTORS)
 OPENCV_ROW = 'opencv (SGBM + largest component + top band)'
 ORACLE_BAND_M = 0.004
 ORACLE_ROW = 'diagnosis: centroid of matched points on the true top face (knows the answer)'
+TABLE_BIAS_EDGES_MM = (0.0, 0.5, 1.0, 2.0)
+"""Buckets of the bare table's disparity error around the object at the scale of its top, in
+millimetres of depth (table_bias.py): the renderer's moire, which no averaging takes out."""
 GOALS = {'within': 95.0, 'mean': 1.5, 'max': 10.0}
 TYPE_TITLES = {'circle': 'Circle', 'cylinder': 'Cylinder', 'cubic_rectangle': 'Cubic Rectangle',
                'cubic_square': 'Cubic Square'}
@@ -245,6 +256,7 @@ def main() -> None:
     for index, matched in enumerate(match_plan(plan, strides, ceiling=True, opencv=True,
                                                jobs=args.jobs, oversampling=args.oversampling)):
         scene = matched.scene
+        table_bias = table_bias_mm(matched.matched[strides[0]])
         for (row, stride), error in grade(matched, choosers,
                                           not args.no_second_look).items():
             results[(row, stride)][scene.object_type].append(error)
@@ -258,7 +270,9 @@ def main() -> None:
                 'top_px': bucket(scene.top_width_px, (24, 40, 60, 100), 'px'),
                 'object_texture': scene.scene.object_texture_family,
                 'surface_texture': scene.scene.surface_texture_family,
-                'noise': bucket(scene.noise_std, (0, 1, 2, 3, 4), 'grey levels')})
+                'noise': bucket(scene.noise_std, (0, 1, 2, 3, 4), 'grey levels'),
+                'table_bias': (bucket(table_bias, TABLE_BIAS_EDGES_MM, 'mm')
+                               if np.isfinite(table_bias) else 'table unmatched (plain)')})
         if (index + 1) % 20 == 0:
             print(f'{index + 1}/{len(plan)} scenes, {time.perf_counter() - start:.0f} s',
                   file=sys.stderr)
@@ -283,7 +297,7 @@ def main() -> None:
     for stride in strides:
         sections.append(table(results, rows, stride, args.tolerance_mm))
     focus_stride = strides[0]
-    for key in ('object_texture', 'top_px', 'noise', 'rig'):
+    for key in ('object_texture', 'top_px', 'noise', 'table_bias', 'rig'):
         sections.append(f'### fuzzy_fitted at stride {focus_stride} (and its ceiling) by {key}')
         sections.append(breakdown(records, 'fuzzy_fitted', focus_stride, key, args.tolerance_mm))
         sections.append(breakdown(records, 'ceiling: fuzzy_fitted', focus_stride, key,
