@@ -52,8 +52,8 @@ def _project(scene: SyntheticScene, world: np.ndarray) -> np.ndarray:
 
 def table_disparity_bias(scene: SyntheticScene) -> tuple[float, float]:
     """Return the spread of the table's square-averaged disparity errors around the object
-    [px] and the depth [mm] one pixel of disparity moves at the object's top; NaN, NaN when
-    fewer than two squares of table are matched there.
+    [px] and the depth [mm] one pixel of disparity moves at the object's top; the spread is
+    NaN when fewer than two squares of table are matched there (a plain table).
 
     The spread is the root mean square of the squares' mean errors about their median (a
     constant offset the measured work surface takes out).
