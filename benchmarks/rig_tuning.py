@@ -222,6 +222,19 @@ TOP_LEVEL_M = 0.002
 """A missed top pixel's match within this of the true top height stands on the top."""
 
 
+def left_pixel_rays(scene: SyntheticScene, columns: np.ndarray, rows: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Return the left camera's centre (3,) and the rays (N, 3) in `world` of left rectified
+    pixels (columns, rows), each ray scaled to unit rectified depth."""
+    pose = scene.rig.world_from_left_camera()
+    projection, rotation = np.asarray(scene.left.P, float), np.asarray(scene.left.R, float)
+    rectified_rays = np.column_stack([(columns - projection[0, 2]) / projection[0, 0],
+                                      (rows - projection[1, 2]) / projection[1, 1],
+                                      np.ones(len(columns))])
+    world_rays: np.ndarray = rectified_rays @ rotation @ pose[:3, :3].T
+    return pose[:3, 3], world_rays
+
+
 def top_face_pixels(scene: SyntheticScene, columns: np.ndarray, rows: np.ndarray
                     ) -> np.ndarray:
     """Return which left rectified pixels (columns, rows) see the scene's true top face.
@@ -230,13 +243,7 @@ def top_face_pixels(scene: SyntheticScene, columns: np.ndarray, rows: np.ndarray
     is cut with the top's plane; the top being the scene's highest surface, a pixel whose ray
     meets it inside the prism sees it.
     """
-    pose = scene.rig.world_from_left_camera()
-    projection, rotation = np.asarray(scene.left.P, float), np.asarray(scene.left.R, float)
-    rectified_rays = np.column_stack([(columns - projection[0, 2]) / projection[0, 0],
-                                      (rows - projection[1, 2]) / projection[1, 1],
-                                      np.ones(len(columns))])
-    world_rays = rectified_rays @ rotation @ pose[:3, :3].T
-    centre = pose[:3, 3]
+    centre, world_rays = left_pixel_rays(scene, columns, rows)
     with np.errstate(divide='ignore', invalid='ignore'):
         scale = (scene.prism.height - centre[2]) / world_rays[:, 2]
     on_top = centre + world_rays * scale[:, None]

@@ -19,7 +19,9 @@ import math
 import cv2
 import numpy as np
 from stereo_fuzzy_perception.core.best_point.object_segmentation import grid_step
-from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene
+from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene, project_rectified
+
+from benchmarks.rig_tuning import left_pixel_rays
 
 SQUARE_PX = 31
 """Side of the squares the table's errors are averaged over [px]: an object's top in the image
@@ -40,16 +42,6 @@ MIN_SQUARE_SHARE = 0.5
 """A square counts when at least this share of its matches is on the table."""
 
 
-def _project(scene: SyntheticScene, world: np.ndarray) -> np.ndarray:
-    """Return the left rectified pixels (N, 2) of world points (N, 3)."""
-    pose = scene.rig.world_from_left_camera()
-    camera = (world - pose[:3, 3]) @ pose[:3, :3]
-    rectified = camera @ np.asarray(scene.left.R, float).reshape(3, 3).T
-    pixels = rectified @ np.asarray(scene.left.P, float)[:3, :3].T
-    projected: np.ndarray = pixels[:, :2] / pixels[:, 2:3]
-    return projected
-
-
 def table_disparity_bias(scene: SyntheticScene) -> tuple[float, float]:
     """Return the spread of the table's square-averaged disparity errors around the object
     [px] and the depth [mm] one pixel of disparity moves at the object's top; the spread is
@@ -65,29 +57,33 @@ def table_disparity_bias(scene: SyntheticScene) -> tuple[float, float]:
     finite = np.isfinite(u) & np.isfinite(v) & np.isfinite(u_right)
     u, v, u_right = u[finite], v[finite], u_right[finite]
     pose = scene.rig.world_from_left_camera()
-    projection = np.asarray(scene.left.P, float)
-    rays = (np.column_stack([(u - projection[0, 2]) / projection[0, 0],
-                             (v - projection[1, 2]) / projection[1, 1], np.ones(len(u))])
-            @ np.asarray(scene.left.R, float).reshape(3, 3) @ pose[:3, :3].T)
+    # where each pixel's ray meets the table (z = 0), and that point in the right image
+    centre, rays = left_pixel_rays(scene, u, v)
     with np.errstate(divide='ignore', invalid='ignore'):
-        depth = -pose[2, 3] / rays[:, 2]  # rectified depth of the ray's point on z = 0
+        scale = -centre[2] / rays[:, 2]
+    on_table = centre + rays * scale[:, None]
+    error = u_right - project_rectified(on_table, pose, scene.left, scene.right)[2]
+    # depth [mm] per pixel of disparity at the top's centre: Z^2 / (f B), Z = f B / disparity
     focal_baseline = -float(np.asarray(scene.right.P, float)[0, 3])
-    shift = float(projection[0, 2] - np.asarray(scene.right.P, float)[0, 2])
-    error = u_right - (u - shift - focal_baseline / depth)
+    shift = float(np.asarray(scene.left.P, float)[0, 2] - np.asarray(scene.right.P, float)[0, 2])
+    target_left, _, target_right, _ = project_rectified(scene.target_world[None, :], pose,
+                                                        scene.left, scene.right)
+    depth_per_px_mm = 1000.0 * focal_baseline / float(target_left[0] - target_right[0]
+                                                      - shift) ** 2
+    if not len(u):
+        return math.nan, depth_per_px_mm
     prism = scene.prism
     corners = np.vstack([np.column_stack([prism.polygon, np.full(len(prism.polygon), z)])
                          for z in (0.0, prism.height)])
-    depth_per_px_mm = 1000.0 * _depth(scene, scene.target_world) ** 2 / focal_baseline
-    if not len(u):
-        return math.nan, depth_per_px_mm
+    corner_u, corner_v, _, _ = project_rectified(corners, pose, scene.left, scene.right)
     # distance of each match from the object's image: the hull of its projected corners
     origin = np.floor([u.min(), v.min()]).astype(int)
     outside = np.ones((int(v.max()) - origin[1] + 1, int(u.max()) - origin[0] + 1), np.uint8)
-    hull = cv2.convexHull((_project(scene, corners) - origin).astype(np.float32))
+    hull = cv2.convexHull((np.column_stack([corner_u, corner_v]) - origin).astype(np.float32))
     cv2.fillConvexPoly(outside, np.rint(hull).astype(np.int32), 0)
     distance = cv2.distanceTransform(outside, cv2.DIST_L2, 5)[
         np.rint(v).astype(int) - origin[1], np.rint(u).astype(int) - origin[0]]
-    table = ((depth > 0.0) & (distance > CLEAR_PX) & (distance <= AROUND_PX)
+    table = ((scale > 0.0) & (distance > CLEAR_PX) & (distance <= AROUND_PX)
              & (np.abs(error) <= MAX_ERROR_PX))
     if not np.any(table):
         return math.nan, depth_per_px_mm
@@ -109,13 +105,6 @@ def table_disparity_bias(scene: SyntheticScene) -> tuple[float, float]:
         return math.nan, depth_per_px_mm
     means = square_sums[full] / square_counts[full]
     return float(np.sqrt(np.mean((means - np.median(means)) ** 2))), depth_per_px_mm
-
-
-def _depth(scene: SyntheticScene, world: np.ndarray) -> float:
-    """Return the rectified depth [m] of one world point."""
-    pose = scene.rig.world_from_left_camera()
-    camera = (np.asarray(world, float) - pose[:3, 3]) @ pose[:3, :3]
-    return float((np.asarray(scene.left.R, float).reshape(3, 3) @ camera)[2])
 
 
 def table_bias_mm(scene: SyntheticScene) -> float:

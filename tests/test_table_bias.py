@@ -13,34 +13,33 @@ def _scene_with_exact_table_matches(step: int = 2):
     table (z = 0), matched exactly: each pixel's table point projected by the right camera."""
     from stereo_fuzzy_perception.core.matched_points import MatchedPoints
     from stereo_fuzzy_perception.core.rig_geometry import StereoRig
-    from stereo_fuzzy_perception.simulation.synthetic_scenes import GeometricSceneSource
+    from stereo_fuzzy_perception.simulation.synthetic_scenes import (
+        GeometricSceneSource,
+        project_rectified,
+    )
+
+    from benchmarks.rig_tuning import left_pixel_rays
 
     scene = GeometricSceneSource(rig=StereoRig()).scene(np.random.default_rng(4), 'cubic_square')
-    pose = scene.rig.world_from_left_camera()
-    left_p = np.asarray(scene.left.P, float)
-    rectification = np.asarray(scene.left.R, float).reshape(3, 3)
     columns, rows = np.meshgrid(np.arange(0, 640, step, dtype=float),
                                 np.arange(0, 480, step, dtype=float))
     u, v = columns.ravel(), rows.ravel()
-    rays_rectified = np.column_stack([(u - left_p[0, 2]) / left_p[0, 0],
-                                      (v - left_p[1, 2]) / left_p[1, 1], np.ones(len(u))])
-    rays_world = rays_rectified @ rectification @ pose[:3, :3].T
-    scale = -pose[2, 3] / rays_world[:, 2]
-    world = pose[:3, 3] + rays_world * scale[:, None]
-    rectified = ((world - pose[:3, 3]) @ pose[:3, :3]) @ rectification.T
-    u_right = (np.column_stack([rectified, np.ones(len(u))]) @ np.asarray(scene.right.P, float).T)
-    u_right = u_right[:, 0] / u_right[:, 2]
-    points = MatchedPoints(rectified.astype(np.float32), u, v, u_right, np.ones(len(u)))
+    centre, rays = left_pixel_rays(scene, u, v)
+    world = centre + rays * (-centre[2] / rays[:, 2])[:, None]
+    u_right = project_rectified(world, scene.rig.world_from_left_camera(), scene.left,
+                                scene.right)[2]
+    # the points' 3D positions play no part in the measure
+    points = MatchedPoints(np.zeros((len(u), 3), np.float32), u, v, u_right, np.ones(len(u)))
     return replace(scene, points=points)
 
 
 def _object_column(scene) -> float:
     """The left rectified column of the top's centre: a band split there lies around it."""
-    pose = scene.rig.world_from_left_camera()
-    camera = (scene.target_world - pose[:3, 3]) @ pose[:3, :3]
-    pixel = np.asarray(scene.left.P, float)[:3, :3] @ (
-        np.asarray(scene.left.R, float).reshape(3, 3) @ camera)
-    return float(pixel[0] / pixel[2])
+    from stereo_fuzzy_perception.simulation.synthetic_scenes import project_rectified
+
+    return float(project_rectified(scene.target_world[None, :],
+                                   scene.rig.world_from_left_camera(), scene.left,
+                                   scene.right)[0][0])
 
 
 def _with_right_columns(scene, u_right):

@@ -165,6 +165,25 @@ def make_object(object_type: str, rng: np.random.Generator, centre_xy: np.ndarra
     return ConvexPrism(corners @ rotation.T + centre_xy, float(height))
 
 
+def project_rectified(world: np.ndarray, world_from_left: np.ndarray, left: CameraCalibration,
+                      right: CameraCalibration
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return u_left, v_left, u_right [px] of world points (N, 3) in the rectified pair, and
+    which of them fall in front of the cameras and inside both images."""
+    camera = transform_points(np.linalg.inv(world_from_left), world)
+    rectified = camera @ left.R.T
+    homogeneous = np.column_stack([rectified, np.ones(len(rectified))])
+    left_image = homogeneous @ left.P.T
+    right_image = homogeneous @ right.P.T
+    u_left = left_image[:, 0] / left_image[:, 2]
+    v_left = left_image[:, 1] / left_image[:, 2]
+    u_right = right_image[:, 0] / right_image[:, 2]
+    inside = ((rectified[:, 2] > 0.0) & (u_left >= 0.0) & (u_left <= left.width - 1)
+              & (u_right >= 0.0) & (u_right <= right.width - 1)
+              & (v_left >= 0.0) & (v_left <= left.height - 1))
+    return u_left, v_left, u_right, inside
+
+
 @dataclass(frozen=True)
 class SyntheticScene:
     """One stereo view of one object with its ground truth.
@@ -258,13 +277,13 @@ class GeometricSceneSource:
         object_world = self._object_samples(prism, rng, cameras)
         surface_world = self._surface_samples(prism, rng, cameras)
         top_corners = np.column_stack([prism.polygon, np.full(len(prism.polygon), prism.height)])
-        corners_in = self._project(top_corners, world_from_left, left_cal, right_cal)[3]
+        corners_in = project_rectified(top_corners, world_from_left, left_cal, right_cal)[3]
         if not np.all(corners_in):
             return None
         world = np.vstack([object_world, surface_world])
         is_object = np.arange(len(world)) < len(object_world)
-        u_left, v_left, u_right, inside = self._project(world, world_from_left, left_cal,
-                                                        right_cal)
+        u_left, v_left, u_right, inside = project_rectified(world, world_from_left, left_cal,
+                                                            right_cal)
         u_left, v_left, u_right = u_left[inside], v_left[inside], u_right[inside]
         is_object = is_object[inside]
         u_right = u_right - rng.normal(0.0, disparity_noise_px, size=u_right.shape)
@@ -323,24 +342,6 @@ class GeometricSceneSource:
         for camera in cameras:
             samples = samples[~prism.segment_hits(samples, camera)]
         return self._keep_foreshortened(samples, np.array([0.0, 0.0, 1.0]), cameras[0], rng)
-
-    @staticmethod
-    def _project(world: np.ndarray, world_from_left: np.ndarray, left: CameraCalibration,
-                 right: CameraCalibration
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Return u_left, v_left, u_right [px] and which points fall inside both images."""
-        camera = transform_points(np.linalg.inv(world_from_left), world)
-        rectified = camera @ left.R.T
-        homogeneous = np.column_stack([rectified, np.ones(len(rectified))])
-        left_image = homogeneous @ left.P.T
-        right_image = homogeneous @ right.P.T
-        u_left = left_image[:, 0] / left_image[:, 2]
-        v_left = left_image[:, 1] / left_image[:, 2]
-        u_right = right_image[:, 0] / right_image[:, 2]
-        inside = ((rectified[:, 2] > 0.0) & (u_left >= 0.0) & (u_left <= left.width - 1)
-                  & (u_right >= 0.0) & (u_right <= right.width - 1)
-                  & (v_left >= 0.0) & (v_left <= left.height - 1))
-        return u_left, v_left, u_right, inside
 
     @staticmethod
     def _triangulate(u_left: np.ndarray, v_left: np.ndarray, u_right: np.ndarray,

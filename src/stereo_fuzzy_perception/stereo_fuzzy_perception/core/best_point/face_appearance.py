@@ -67,8 +67,8 @@ inside the other."""
 
 CONTRAST_SIDE_PX = 3
 """Side of the square over which a pixel's local contrast (grey-level deviation) is measured
-[px]: a square straddling the rim takes the contrast of the more textured side, which grows
-by half a square (5 px grew a striped disc by a pixel all round)."""
+[px]: a square straddling the rim takes the contrast of the more textured side, which then
+grows by half a square, so the square is kept small."""
 
 GREY_SMOOTHING_PX = 1.0
 """Gaussian smoothing of the grey level as a feature [px]: sensor noise."""
