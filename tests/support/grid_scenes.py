@@ -21,6 +21,11 @@ from stereo_fuzzy_perception.simulation.synthetic_scenes import (
     rectified_calibration,
 )
 
+TILTED_RIG = StereoRig(baseline_m=0.08, alpha_deg=30.0, x0_m=0.2, y0_m=-0.2,
+                       z0_m=0.6 * math.cos(math.radians(30.0)), vergence_deg=2.0)
+"""A rig 0.6 m from the surface along its optical axis, looking down at 30 degrees: the rig
+the outline, appearance and plain-top tests share."""
+
 
 @dataclass(frozen=True)
 class Box:

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+from grid_scenes import TILTED_RIG as RIG
 from grid_scenes import Box, grid_matches
 from scipy import ndimage
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
@@ -19,11 +20,7 @@ from stereo_fuzzy_perception.core.best_point.face_appearance import (
 from stereo_fuzzy_perception.core.best_point.face_outline import face_from_image, on_top_plane
 from stereo_fuzzy_perception.core.best_point.point_selectors import decision_area
 from stereo_fuzzy_perception.core.matched_points import RectifiedImage
-from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 
-# 0.6 m from the surface along the optical axis, looking down at 30 degrees
-RIG = StereoRig(baseline_m=0.08, alpha_deg=30.0, x0_m=0.2, y0_m=-0.2,
-                z0_m=0.6 * math.cos(math.radians(30.0)), vergence_deg=2.0)
 POSE = RIG.world_from_left_camera()
 DISC = Box((0.18, 0.12), 0.05, 0.005, round=True)
 BOX = Box((0.2, 0.15), 0.04, 0.03)

@@ -1,10 +1,10 @@
 """The top face's outline from the left rectified image (face_outline.py), on ray-cast grids."""
 
 import dataclasses
-import math
 
 import numpy as np
 import pytest
+from grid_scenes import TILTED_RIG as RIG
 from grid_scenes import Box, camera_distance, grid_matches
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     NO_OBJECT,
@@ -23,11 +23,7 @@ from stereo_fuzzy_perception.core.best_point.face_outline import (
 from stereo_fuzzy_perception.core.best_point.object_segmentation import across_m
 from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser
 from stereo_fuzzy_perception.core.matched_points import RectifiedImage
-from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 
-# 0.6 m from the surface along the optical axis, looking down at 30 degrees
-RIG = StereoRig(baseline_m=0.08, alpha_deg=30.0, x0_m=0.2, y0_m=-0.2,
-                z0_m=0.6 * math.cos(math.radians(30.0)), vergence_deg=2.0)
 BOX = Box((0.2, 0.15), 0.04, 0.03)
 DISC = Box((0.18, 0.12), 0.05, 0.005, round=True)
 DEFAULTS = AreaConfig()

@@ -1,10 +1,10 @@
 """A plain top's height from both rectified images (plain_top_height.py), on ray-cast pairs."""
 
 import dataclasses
-import math
 
 import numpy as np
 import pytest
+from grid_scenes import TILTED_RIG as RIG
 from grid_scenes import Box, grid_matches, plain_box_pair
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     AreaConfig,
@@ -14,11 +14,7 @@ from stereo_fuzzy_perception.core.best_point.face_outline import plain_face_from
 from stereo_fuzzy_perception.core.best_point.plain_top_height import plain_top_height
 from stereo_fuzzy_perception.core.best_point.work_surface import SURFACE_MEASURED, SurfacePlane
 from stereo_fuzzy_perception.core.matched_points import RectifiedImage
-from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 
-# 0.6 m from the surface along the optical axis, looking down at 30 degrees
-RIG = StereoRig(baseline_m=0.08, alpha_deg=30.0, x0_m=0.2, y0_m=-0.2,
-                z0_m=0.6 * math.cos(math.radians(30.0)), vergence_deg=2.0)
 POSE = RIG.world_from_left_camera()
 TABLE = SurfacePlane(SURFACE_MEASURED, 0.0, 0.0, 0.0, 0.1, 1000)
 TOLERANCE = 12.0  # grey levels around the top's grey that make it plain
