@@ -15,10 +15,10 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     find_correlation_area,
 )
 from stereo_fuzzy_perception.core.best_point.face_outline import (
-    _plain_region,
     face_from_image,
     on_top_plane,
     plain_face_from_image,
+    plain_region,
 )
 from stereo_fuzzy_perception.core.best_point.object_segmentation import across_m
 from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser
@@ -217,14 +217,14 @@ def test_a_plain_face_holds_the_matches_within_a_windows_radius_of_its_pixels():
     inside_rows, inside_columns = np.full(10, 30), np.arange(22, 32)
     rows = np.concatenate([inside_rows, np.full(12, 42)])
     columns = np.concatenate([inside_columns, np.arange(24, 36)])
-    hull = _plain_region(plain, rows, columns, reach=4)
+    hull = plain_region(plain, rows, columns, reach=4)
     assert hull is not None
     assert (hull.min(axis=0).tolist(), hull.max(axis=0).tolist()) == ([20, 20], [39, 39])
     # counted only on the face's own pixels, 10 of 22 matches are not most of them
-    assert _plain_region(plain, rows, columns, reach=0) is None
+    assert plain_region(plain, rows, columns, reach=0) is None
     # nor are they when the line lies beyond the window's radius
     far = np.concatenate([inside_rows, np.full(12, 46)])
-    assert _plain_region(plain, far, columns, reach=4) is None
+    assert plain_region(plain, far, columns, reach=4) is None
 
 
 def plain_face(image=None, max_across_m=DEFAULTS.max_object_across_m):

@@ -217,7 +217,7 @@ def plain_face_from_image(face: CorrelationArea, image: RectifiedImage,
     # take in the table, and the median of all their greys finds table regions.
     for level, spread in levels[:1] if right_image is not None else levels:
         tolerance = max(PLAIN_TOLERANCE_SIGMAS * spread, PLAIN_TOLERANCE_GREY * grey_level)
-        hull = _plain_region(np.abs(crop - level) <= tolerance, rows - low[1],
+        hull = plain_region(np.abs(crop - level) <= tolerance, rows - low[1],
                              columns - low[0], image.window_size // 2,
                              SCATTERED_SEED_SHARE if right_image is not None
                              else PLAIN_SEED_SHARE)
@@ -259,7 +259,7 @@ def _plain_levels(crop: np.ndarray, rows: np.ndarray, columns: np.ndarray
             (everything, MAD_TO_SIGMA * float(np.median(np.abs(seeds - everything))))]
 
 
-def _plain_region(plain: np.ndarray, rows: np.ndarray, columns: np.ndarray, reach: int,
+def plain_region(plain: np.ndarray, rows: np.ndarray, columns: np.ndarray, reach: int,
                   min_share: float = PLAIN_SEED_SHARE) -> np.ndarray | None:
     """Return the hull (K, 2) of the plain pixels' region around the matches, or None.
 

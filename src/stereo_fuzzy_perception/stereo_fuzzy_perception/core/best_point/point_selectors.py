@@ -60,6 +60,7 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     on_pixel_grid,
     width_m,
 )
+from stereo_fuzzy_perception.core.best_point.plain_object import plain_object_from_image
 from stereo_fuzzy_perception.core.best_point.rule_base import (
     RuleBase,
     RuleBaseError,
@@ -399,8 +400,9 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     areas they will be given. A face narrower than any object (min_object_across_m) or
     covering less of the image than any object (MIN_OBJECT_AREA_PX) is refused whichever way
     its outline came. A pair refused after every look at its face is looked at once more as
-    the image's textured regions (correlation_area.find_textured_area). A face that passed
-    it all and stands low has its rim refined from its appearance (face_appearance.py).
+    the image's textured regions (correlation_area.find_textured_area), and then, with the
+    right image, for one plain object on a textured surface (plain_object.py). A face that
+    passed it all and stands low has its rim refined from its appearance (face_appearance.py).
     """
     shift = disparity_shift(left, right)
     area = find_correlation_area(points, world_from_camera, config, shift)
@@ -433,6 +435,11 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
             if textured is not None:
                 area = face_from_image(textured, points.left_image, left, right,
                                        world_from_camera, config.min_points) or textured
+        if not area.ok and points.right_image is not None:
+            # A plain top on a textured surface is matched only along its rim, and a low one
+            # stands out of nothing; the image still shows it, both images its height.
+            area = plain_object_from_image(area, points, left, right, world_from_camera,
+                                           config) or area
     if area.ok and config.min_object_across_m > 0.0:
         width = width_m(area.xyz_world[:, :2])
         if width < config.min_object_across_m:

@@ -1,0 +1,203 @@
+"""A plain object on a textured surface, from the left image alone, when the matches show none.
+
+A top without texture is matched only along its rim, where the correlation windows take in the
+surface's texture and with it the surface's disparity; a low one (a disc a few millimetres
+high, a fraction of a pixel of parallax on a far rig) does not stand out of the surface's noise
+at all. correlation_area.py then finds no object. The left image still shows such a top: a
+compact region of nearly constant grey inside the surface's texture. So, for a pair refused
+after every other look:
+
+1. Seeds: the left image's pixels whose contrast over FLAT_SIDE_PX squares is under
+   PLAIN_CONTRAST_SHARE of the image's median contrast (or the sensor's noise), opened, in
+   regions of at least MIN_SEED_PX that stay clear of the image's edges.
+2. Each seed's face: the pixels of its grey around it, one convex region closed within its
+   box (face_outline.plain_region), covering at least MIN_OBJECT_AREA_PX, and of an object's
+   size on the surface at some height. Where more than MAX_FACES such faces lie (a plain
+   surface, or one printed with plain blocks), nothing tells an object from the surface and
+   the look ends there.
+3. Its height: where its rim lies in both rectified images (plain_top_height.py), with a peak
+   of at least MIN_PEAK, and at least min_object_height_m above the surface (a printed patch
+   lies on the surface: its rim aligns at height zero).
+4. Exactly one such face, of an object's size on its top plane, is the object; two or more are
+   not told apart, and none is given.
+
+ROS-free: numpy, scipy and OpenCV.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+
+from stereo_fuzzy_perception.core.best_point.correlation_area import (
+    MIN_OBJECT_AREA_PX,
+    NO_POINTS,
+    STATUS_OK,
+    AreaConfig,
+    CorrelationArea,
+)
+from stereo_fuzzy_perception.core.best_point.face_outline import (
+    FLAT_SIDE_PX,
+    MAD_TO_SIGMA,
+    PLAIN_OPENING_PX,
+    PLAIN_SEED_SHARE,
+    PLAIN_TOLERANCE_GREY,
+    PLAIN_TOLERANCE_SIGMAS,
+    SMOOTHING_SIGMA_PX,
+    face_within,
+    plain_region,
+)
+from stereo_fuzzy_perception.core.best_point.object_segmentation import across_m, grid_step
+from stereo_fuzzy_perception.core.best_point.plain_top_height import plain_top_height
+from stereo_fuzzy_perception.core.camera_model import CameraCalibration
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints
+
+PLAIN_CONTRAST_SHARE = 0.25
+"""A seed pixel's contrast is at most this share of the image's median contrast."""
+
+NOISE_CONTRAST_GREY = 1.5
+"""... or at most this many grey levels (of 255): sensor noise on a plain top."""
+
+MIN_SEED_PX = 150
+"""Fewest pixels of a seed region: a plain top's inside, its rim's shading left out."""
+
+MAX_FACES = 5
+"""More plain regions of an object's shape and size than this: the surface itself is plain in
+places, or printed with plain blocks (and the height of each is a search of its own)."""
+
+MIN_PEAK = 0.9
+"""Lowest correlation of the rim's memberships at the face's height (plain_top_height's peak):
+with no match to confirm the face, only a rim both images show clearly is taken."""
+
+SEED_MARGIN_PX = 10
+"""Added to the seed's size around it for the box its face is looked for in [px]."""
+
+
+def plain_object_from_image(refused: CorrelationArea, points: MatchedPoints,
+                            left: CameraCalibration, right: CameraCalibration,
+                            world_from_camera: np.ndarray, config: AreaConfig
+                            ) -> CorrelationArea | None:
+    """Return the one plain object the left image shows on a textured surface, or None.
+
+    Args:
+        refused: The correlation area refused after every other look (its work surface is
+            the one the height is measured from).
+        points: The pair's matches, with both rectified images (left_image, right_image).
+        left: Rectified calibration of the left image.
+        right: Rectified calibration of the right image.
+        world_from_camera: 4x4 pose of the left optical frame in `world`.
+        config: The correlation area's settings (min_points, min/max_object_across_m,
+            min/max_object_height_m).
+
+    Returns:
+        The area whose points are the face's pixels on the matches' grid, cut with its top
+        plane (status ok); None when the images show no such object, or more than one.
+    """
+    image, right_image = points.left_image, points.right_image
+    finite = np.isfinite(points.u_left) & np.isfinite(points.v_left)
+    if (refused.status == NO_POINTS or image is None or right_image is None
+            or not np.any(finite) or image.pixels.ndim != 2):
+        return None
+    grey_level = 257.0 if image.pixels.dtype == np.uint16 else 1.0
+    smooth = cv2.GaussianBlur(image.pixels.astype(np.float32), (0, 0), SMOOTHING_SIGMA_PX)
+    seeds = _seed_regions(smooth, grey_level)
+    u, v = points.u_left[finite], points.v_left[finite]
+    step = grid_step(u, v)
+    # The face's points come from the refused area's surface and the matches' grid; the area
+    # itself has no points to give them.
+    base = dataclasses.replace(refused, status=STATUS_OK, reason='', u_left=u[:1],
+                               v_left=v[:1], u_right=u[:1], xyz_world=np.zeros((1, 3)),
+                               score=np.array([float(np.median(points.score[finite]))]),
+                               weight=None, face_in_pieces=None, scattered_face=None)
+    outlines = [outline for outline in (
+        _plain_outline(smooth, rows, columns, grey_level, base, step, points, left, right,
+                       world_from_camera, config) for rows, columns in seeds)
+        if outline is not None]
+    if len(outlines) > MAX_FACES:
+        return None  # plain patches of an object's shape all over: nothing tells them apart
+    found = [face for face in (
+        _face_at_its_height(outline, level, tolerance, base, step, points, left, right,
+                            world_from_camera, config) for outline, level, tolerance in outlines)
+        if face is not None]
+    return found[0] if len(found) == 1 else None
+
+
+def _seed_regions(smooth: np.ndarray, grey_level: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Return the (rows, columns) of each plain seed region of the image."""
+    mean = cv2.blur(smooth, (FLAT_SIDE_PX, FLAT_SIDE_PX))
+    contrast = np.sqrt(np.maximum(cv2.blur(smooth * smooth, (FLAT_SIDE_PX, FLAT_SIDE_PX))
+                                  - mean * mean, 0.0))
+    plain = contrast <= max(PLAIN_CONTRAST_SHARE * float(np.median(contrast)),
+                            NOISE_CONTRAST_GREY * grey_level)
+    opened = cv2.morphologyEx(plain.astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(
+        cv2.MORPH_ELLIPSE, (2 * PLAIN_OPENING_PX + 1, 2 * PLAIN_OPENING_PX + 1)))
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=4)
+    height, width = smooth.shape
+    seeds = []
+    for label in range(1, count):
+        x, y, w, h, size = stats[label]
+        if (size < MIN_SEED_PX or x == 0 or y == 0 or x + w >= width or y + h >= height
+                or max(w, h) > 0.5 * min(width, height)):
+            continue  # too small, open to the image's edge, or the surface itself
+        rows, columns = np.nonzero(labels[y:y + h, x:x + w] == label)
+        seeds.append((rows + y, columns + x))
+    return seeds
+
+
+def _plain_outline(smooth: np.ndarray, rows: np.ndarray, columns: np.ndarray,
+                   grey_level: float, base: CorrelationArea, step: float,
+                   points: MatchedPoints, left: CameraCalibration, right: CameraCalibration,
+                   world_from_camera: np.ndarray, config: AreaConfig
+                   ) -> tuple[np.ndarray, float, float] | None:
+    """Return (outline (K, 2) in the left rectified image [px], grey level, tolerance) of the
+    face grown from one seed region, or None when it is no object's face at any height."""
+    image = points.left_image
+    assert image is not None  # plain_object_from_image checked
+    greys = smooth[rows, columns]
+    level = float(np.median(greys))
+    spread = MAD_TO_SIGMA * float(np.median(np.abs(greys - level)))
+    tolerance = max(PLAIN_TOLERANCE_SIGMAS * spread, PLAIN_TOLERANCE_GREY * grey_level)
+    reach = int(max(np.ptp(rows), np.ptp(columns))) + SEED_MARGIN_PX
+    low = np.maximum([columns.min() - reach, rows.min() - reach], 0)
+    high = np.minimum([columns.max() + reach + 1, rows.max() + reach + 1], smooth.shape[::-1])
+    crop = smooth[low[1]:high[1], low[0]:high[0]]
+    hull = plain_region(np.abs(crop - level) <= tolerance, rows - low[1], columns - low[0], 0,
+                        PLAIN_SEED_SHARE)
+    if hull is None or cv2.contourArea(hull.astype(np.float32)) < MIN_OBJECT_AREA_PX:
+        return None
+    outline = hull.astype(float) + low + (image.x, image.y)
+    # On the surface the face is as large as it can be, at the highest top as small.
+    largest = face_within(dataclasses.replace(base, top_height=0.0), outline, step, left, right,
+                          world_from_camera, config.min_points)
+    smallest = face_within(dataclasses.replace(base, top_height=config.max_object_height_m),
+                           outline, step, left, right, world_from_camera, config.min_points)
+    if (largest is None or smallest is None
+            or across_m(largest.xyz_world[:, :2]) < config.min_object_across_m
+            or across_m(smallest.xyz_world[:, :2]) > config.max_object_across_m):
+        return None
+    return outline, level, tolerance
+
+
+def _face_at_its_height(outline: np.ndarray, level: float, tolerance: float,
+                        base: CorrelationArea, step: float, points: MatchedPoints,
+                        left: CameraCalibration, right: CameraCalibration,
+                        world_from_camera: np.ndarray, config: AreaConfig
+                        ) -> CorrelationArea | None:
+    """Return the face inside outline at the height both images give it, or None."""
+    assert points.left_image is not None and points.right_image is not None
+    measured = plain_top_height(outline, level, tolerance, points.left_image,
+                                points.right_image, left, right, world_from_camera,
+                                base.surface, config.max_object_height_m)
+    if (measured is None or measured.peak < MIN_PEAK
+            or measured.height_m < config.min_object_height_m):
+        return None
+    face = face_within(dataclasses.replace(base, top_height=measured.height_m), outline, step,
+                       left, right, world_from_camera, config.min_points)
+    if face is None:
+        return None
+    length = across_m(face.xyz_world[:, :2])
+    if not config.min_object_across_m <= length <= config.max_object_across_m:
+        return None
+    return face

@@ -1,0 +1,102 @@
+"""One plain object on a textured surface, from the images when the matches show none
+(plain_object.py), on ray-cast pairs."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from grid_scenes import TILTED_RIG as RIG
+from grid_scenes import Box, grid_matches, plain_box_pair
+from stereo_fuzzy_perception.core.best_point.correlation_area import (
+    NO_OBJECT,
+    OUTLINE_IMAGE,
+    AreaConfig,
+    find_correlation_area,
+)
+from stereo_fuzzy_perception.core.best_point.plain_object import plain_object_from_image
+from stereo_fuzzy_perception.core.best_point.point_selectors import decision_area
+from stereo_fuzzy_perception.core.matched_points import RectifiedImage
+
+POSE = RIG.world_from_left_camera()
+CONFIG = AreaConfig()
+
+
+def bare_table_matches():
+    """The table's own matches: what window correlation gives where a plain top stands out of
+    nothing (a low one) or is matched only as the table around it."""
+    points, left, right = grid_matches(RIG, None, 0.05, 1)
+    refused = find_correlation_area(points, POSE, CONFIG, float(left.P[0, 2] - right.P[0, 2]))
+    assert refused.status == NO_OBJECT, refused.reason
+    return points, left, right, refused
+
+
+def with_images(points, left_image, right_image):
+    return dataclasses.replace(points, left_image=left_image, right_image=right_image)
+
+
+def face_centre(area):
+    return np.average(area.xyz_world, axis=0, weights=area.point_weights())
+
+
+@pytest.mark.parametrize('height', [0.005, 0.03])
+def test_a_plain_disc_is_found_in_the_images_at_its_height(height):
+    disc = Box((0.2, 0.15), 0.04, height, round=True)
+    points, left, right, refused = bare_table_matches()
+    left_image, right_image, _, _, _ = plain_box_pair(RIG, disc, top_grey=200.0)
+    found = plain_object_from_image(refused, with_images(points, left_image, right_image), left,
+                                    right, POSE, CONFIG)
+    assert found is not None and found.ok
+    assert found.outline == OUTLINE_IMAGE
+    assert found.top_height == pytest.approx(height, abs=0.0015)
+    assert np.linalg.norm(face_centre(found) - [*disc.centre_xy, height]) < 0.002
+
+
+def test_step_one_gives_a_plain_disc_its_face_when_nothing_stands_out():
+    disc = Box((0.2, 0.15), 0.04, 0.005, round=True)
+    points, left, right, _ = bare_table_matches()
+    left_image, right_image, _, _, _ = plain_box_pair(RIG, disc, top_grey=200.0)
+    area = decision_area(with_images(points, left_image, right_image), left, right, POSE,
+                         CONFIG)
+    assert area.ok, area.reason
+    assert np.linalg.norm(face_centre(area) - [*disc.centre_xy, 0.005]) < 0.002
+    # Without the right image there is no height to take it at: the refusal stands.
+    alone = decision_area(with_images(points, left_image, None), left, right, POSE, CONFIG)
+    assert alone.status == NO_OBJECT
+
+
+def test_a_plain_patch_printed_on_the_table_is_no_object():
+    patch = Box((0.2, 0.15), 0.04, 0.0)
+    points, left, right, refused = bare_table_matches()
+    pair = with_images(points, *plain_box_pair(RIG, patch, top_grey=200.0)[:2])
+    assert plain_object_from_image(refused, pair, left, right, POSE, CONFIG) is None
+    # It is refused for its height alone: its rim aligns at the surface's.
+    on_surface = plain_object_from_image(refused, pair, left, right, POSE,
+                                         dataclasses.replace(CONFIG, min_object_height_m=0.0))
+    assert on_surface is not None and on_surface.top_height < 0.001
+
+
+def test_two_plain_objects_are_not_told_apart():
+    first, second = Box((0.2, 0.15), 0.04, 0.03), Box((0.28, 0.1), 0.04, 0.02, round=True)
+    points, left, right, refused = bare_table_matches()
+    # The same table and sensor noise (one seed) in all three pairs: each object's pixels are
+    # the ones its pair changes.
+    table = plain_box_pair(RIG, Box((0.2, 0.15), 0.0, 0.0), top_grey=200.0)[:2]
+    one = plain_box_pair(RIG, first, top_grey=200.0)[:2]
+    other = plain_box_pair(RIG, second, top_grey=60.0)[:2]
+    both = [RectifiedImage(np.where(a.pixels != bare.pixels, a.pixels, b.pixels))
+            for a, b, bare in zip(one, other, table, strict=True)]
+    for single in (one, other):
+        assert plain_object_from_image(refused, with_images(points, *single), left, right, POSE,
+                                       CONFIG) is not None
+    assert plain_object_from_image(refused, with_images(points, *both), left, right, POSE,
+                                   CONFIG) is None
+
+
+def test_a_plain_surface_shows_no_object():
+    points, left, right, refused = bare_table_matches()
+    rng = np.random.default_rng(1)
+    plain = [RectifiedImage(np.clip(np.round(120.0 + rng.normal(0.0, 1.5, (left.height,
+                                                                            left.width))),
+                                    0, 255).astype(np.uint8)) for _ in range(2)]
+    assert plain_object_from_image(refused, with_images(points, *plain), left, right, POSE,
+                                   CONFIG) is None
