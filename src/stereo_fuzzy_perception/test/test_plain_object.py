@@ -100,3 +100,13 @@ def test_a_plain_surface_shows_no_object():
                                     0, 255).astype(np.uint8)) for _ in range(2)]
     assert plain_object_from_image(refused, with_images(points, *plain), left, right, POSE,
                                    CONFIG) is None
+
+
+@pytest.mark.parametrize('shape', [(0, 0), (1, 640), (480,)])
+def test_an_empty_or_malformed_image_is_no_object(shape):
+    points, left, right, refused = bare_table_matches()
+    broken = RectifiedImage(np.zeros(shape, np.uint8))
+    good = plain_box_pair(RIG, Box((0.2, 0.15), 0.04, 0.03), top_grey=200.0)[0]
+    for pair in ((broken, good), (good, broken)):
+        assert plain_object_from_image(refused, with_images(points, *pair), left, right, POSE,
+                                       CONFIG) is None

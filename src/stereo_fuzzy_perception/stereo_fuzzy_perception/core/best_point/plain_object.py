@@ -98,8 +98,10 @@ def plain_object_from_image(refused: CorrelationArea, points: MatchedPoints,
     image, right_image = points.left_image, points.right_image
     finite = np.isfinite(points.u_left) & np.isfinite(points.v_left)
     if (refused.status == NO_POINTS or image is None or right_image is None
-            or not np.any(finite) or image.pixels.ndim != 2):
-        return None
+            or not np.any(finite)
+            or any(part.pixels.ndim != 2 or min(part.pixels.shape) < 2
+                   for part in (image, right_image))):
+        return None  # nothing to look at (a peer's empty or malformed image is no object)
     grey_level = 257.0 if image.pixels.dtype == np.uint16 else 1.0
     smooth = cv2.GaussianBlur(image.pixels.astype(np.float32), (0, 0), SMOOTHING_SIGMA_PX)
     seeds = _seed_regions(smooth, grey_level)
