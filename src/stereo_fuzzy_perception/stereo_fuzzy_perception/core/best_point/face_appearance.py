@@ -37,7 +37,7 @@ from stereo_fuzzy_perception.core.best_point.face_outline import (
     face_within,
     hull_outline,
 )
-from stereo_fuzzy_perception.core.best_point.object_segmentation import grid_step
+from stereo_fuzzy_perception.core.best_point.object_segmentation import grid_step, local_contrast
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 from stereo_fuzzy_perception.core.matched_points import RectifiedImage
 
@@ -153,9 +153,7 @@ def _appearance_hull(face: np.ndarray, crop: np.ndarray) -> np.ndarray | None:
     if np.count_nonzero(core) < MIN_MODEL_PIXELS or np.count_nonzero(ring) < MIN_MODEL_PIXELS:
         return None
     grey = cv2.GaussianBlur(crop, (0, 0), GREY_SMOOTHING_PX)
-    mean = cv2.blur(crop, (CONTRAST_SIDE_PX, CONTRAST_SIDE_PX))
-    square = cv2.blur(crop * crop, (CONTRAST_SIDE_PX, CONTRAST_SIDE_PX))
-    contrast = np.log1p(np.sqrt(np.maximum(square - mean * mean, 0.0)))
+    contrast = np.log1p(local_contrast(crop, CONTRAST_SIDE_PX))
     modelled = core | ring
     bins = np.zeros(crop.shape, np.int64)
     for feature in (grey, contrast):

@@ -48,6 +48,7 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     across_m,
     grid_step,
     image_regions,
+    local_contrast,
 )
 from stereo_fuzzy_perception.core.best_point.plain_top_height import plain_top_height
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
@@ -249,9 +250,7 @@ def _plain_levels(crop: np.ndarray, rows: np.ndarray, columns: np.ndarray
     itself) with the image's noise there, then the median and spread of all of them (a top
     with faint texture of its own).
     """
-    mean = cv2.blur(crop, (FLAT_SIDE_PX, FLAT_SIDE_PX))
-    square = cv2.blur(crop * crop, (FLAT_SIDE_PX, FLAT_SIDE_PX))
-    local = np.sqrt(np.maximum(square - mean * mean, 0.0))[rows, columns]
+    local = local_contrast(crop, FLAT_SIDE_PX)[rows, columns]
     seeds = crop[rows, columns]
     flat = local <= np.quantile(local, FLAT_SHARE)
     everything = float(np.median(seeds))

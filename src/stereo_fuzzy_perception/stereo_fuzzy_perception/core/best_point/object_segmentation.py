@@ -397,6 +397,15 @@ def top_height(heights: np.ndarray, sigmas: np.ndarray) -> float:
     return level
 
 
+def local_contrast(pixels: np.ndarray, side: int) -> np.ndarray:
+    """Return each pixel's grey-level standard deviation over the side x side square around
+    it (float32 pixels; OpenCV's box filter, borders reflected)."""
+    mean = cv2.blur(pixels, (side, side))
+    contrast: np.ndarray = np.sqrt(np.maximum(cv2.blur(pixels * pixels, (side, side))
+                                              - mean * mean, 0.0))
+    return contrast
+
+
 def textured_regions(image: RectifiedImage, u: np.ndarray, v: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Label the matches by the textured region of the left image they lie in.
@@ -418,9 +427,7 @@ def textured_regions(image: RectifiedImage, u: np.ndarray, v: np.ndarray
     pixels = np.asarray(image.pixels, dtype=np.float32)
     if pixels.ndim != 2 or not pixels.size:
         return np.zeros(len(u), dtype=np.int64), np.zeros(1, dtype=np.int64)
-    box = (max(1, int(image.window_size)),) * 2
-    mean = cv2.blur(pixels, box)
-    contrast = np.sqrt(np.maximum(cv2.blur(pixels * pixels, box) - mean * mean, 0.0))
+    contrast = local_contrast(pixels, max(1, int(image.window_size)))
     reference = float(np.percentile(contrast, TEXTURE_REFERENCE_PERCENTILE))
     # OpenCV's opening and labelling, far faster than scipy.ndimage's (the package README has
     # the figures): this runs on every pair refused for want of an object. Outside the image

@@ -49,7 +49,11 @@ from stereo_fuzzy_perception.core.best_point.face_outline import (
     face_within,
     plain_region,
 )
-from stereo_fuzzy_perception.core.best_point.object_segmentation import across_m, grid_step
+from stereo_fuzzy_perception.core.best_point.object_segmentation import (
+    across_m,
+    grid_step,
+    local_contrast,
+)
 from stereo_fuzzy_perception.core.best_point.plain_top_height import plain_top_height
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
@@ -128,9 +132,7 @@ def plain_object_from_image(refused: CorrelationArea, points: MatchedPoints,
 
 def _seed_regions(smooth: np.ndarray, grey_level: float) -> list[tuple[np.ndarray, np.ndarray]]:
     """Return the (rows, columns) of each plain seed region of the image."""
-    mean = cv2.blur(smooth, (FLAT_SIDE_PX, FLAT_SIDE_PX))
-    contrast = np.sqrt(np.maximum(cv2.blur(smooth * smooth, (FLAT_SIDE_PX, FLAT_SIDE_PX))
-                                  - mean * mean, 0.0))
+    contrast = local_contrast(smooth, FLAT_SIDE_PX)
     plain = contrast <= max(PLAIN_CONTRAST_SHARE * float(np.median(contrast)),
                             NOISE_CONTRAST_GREY * grey_level)
     opened = cv2.morphologyEx(plain.astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(
