@@ -180,6 +180,37 @@ def test_a_top_face_in_pieces_is_uncertain_not_taken():
     assert allowed.status == STATUS_OK, allowed.reason
 
 
+
+@pytest.mark.parametrize(('face_noise_mm', 'seed'), [(0.5, 0), (0.5, 2), (0.5, 3), (0.8, 1),
+                                                     (0.8, 2), (0.8, 3)])
+def test_a_top_matched_worse_than_the_table_comes_whole_at_its_mode(face_noise_mm, seed):
+    # The table matched to 0.03 px, the top's heights spread by half a millimetre or more:
+    # the densest upper level of the top lies on the upper side of that spread, and the band
+    # below it holds only a third of the face: refused in pieces, with the face at the mode
+    # of its heights, which passes every test (decision_area takes it when the image shows
+    # no plain face).
+    box = Box((0.2, 0.15), 0.06, 0.04)
+    points, left, right = grid_matches(RIG, box, 0.03, 1, seed=seed)
+    world = points.xyz @ WORLD_FROM_LEFT[:3, :3].T + WORLD_FROM_LEFT[:3, 3]
+    on_face = world[:, 2] > 0.03
+    rng = np.random.default_rng(seed + 10)
+    world[on_face, 2] += rng.normal(0.0, face_noise_mm / 1000.0, int(on_face.sum()))
+    spoiled = dataclasses.replace(points, xyz=(world - WORLD_FROM_LEFT[:3, 3])
+                                  @ WORLD_FROM_LEFT[:3, :3])
+    area = find_correlation_area(spoiled, WORLD_FROM_LEFT, DEFAULTS,
+                                 float(left.P[0, 2] - right.P[0, 2]))
+    if area.status == STATUS_OK:  # the band at the densest level held enough of the face
+        at_mode = area
+    else:
+        assert area.status == UNCERTAIN_TOP and 'in pieces' in area.reason, area.reason
+        assert area.face_in_pieces is not None and area.face_at_mode is not None
+        at_mode = area.face_at_mode
+        assert at_mode.status == STATUS_OK
+        assert len(at_mode.u_left) > 1.5 * len(area.face_in_pieces.u_left)
+    assert at_mode.top_height == pytest.approx(0.04, abs=0.0007)
+    assert hull_fill(at_mode.u_left, at_mode.v_left, 1.0) >= DEFAULTS.min_top_fill
+
+
 @pytest.mark.parametrize('step', [1, 3])
 def test_hull_fill_is_one_for_a_solid_patch_and_small_for_a_ring(step):
     u, v = (grid.ravel() for grid in np.meshgrid(np.arange(0, 60, step),

@@ -26,6 +26,8 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     choose_textured_object,
     plausible_average,
     textured_regions,
+    top_height,
+    top_mode,
 )
 from stereo_fuzzy_perception.core.best_point.point_selectors import decision_area
 from stereo_fuzzy_perception.core.best_point.work_surface import SURFACE_PLAIN
@@ -468,3 +470,21 @@ def test_a_face_too_thin_at_a_coarse_stride_is_left_for_the_second_look():
     # a row of NaN (a peer's) does not make the stride-3 grid look like stride 1
     points.u_left[0] = np.nan
     assert decision_area(points, *rectified_pair(rig), pose, DEFAULTS).status == TOO_FEW_POINTS
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_the_top_mode_is_the_centre_of_a_top_spread_wider_than_its_bins(seed):
+    # A top whose heights spread by 1 mm, binned at a quarter of that, with a side wall below:
+    # top_height's level lies on the upper side of the spread, top_mode at its centre.
+    rng = np.random.default_rng(seed)
+    heights = np.concatenate([0.05 + rng.normal(0.0, 0.001, 3000), rng.uniform(0.0, 0.05, 300)])
+    sigmas = np.full(len(heights), 0.00025)
+    level = top_height(heights, sigmas)
+    assert level > 0.0505
+    assert top_mode(heights, sigmas, level) == pytest.approx(0.05, abs=0.0002)
+
+
+def test_the_top_mode_of_one_height_is_that_height():
+    assert top_mode(np.array([0.03]), np.array([0.001]), 0.03) == 0.03
+    # a start with nothing within its window stays where it is
+    assert top_mode(np.array([0.03]), np.array([0.001]), 0.09) == 0.09

@@ -39,6 +39,7 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     smoothed_on_grid,
     square_cells,
     textured_regions,
+    top_mode,
 )
 from stereo_fuzzy_perception.core.best_point.work_surface import (
     INLIER_SIGMAS,
@@ -255,6 +256,11 @@ class CorrelationArea:
             (max_top_spread_m), the face as its matches give it (status ok): a plain top's
             matched heights scatter, and both images may still show its height
             (plain_top_height.py). None otherwise.
+        face_at_mode: When the area is refused as a face in pieces, the same face taken at
+            the mode of its region's heights (object_segmentation.top_mode), if that face
+            passes every test: a top matched worse than the surface has its densest upper
+            level on the upper side of its heights, and the band below that level holds only
+            their upper part. Taken only when the image shows no plain face. None otherwise.
         texture_tried: Refused with no region of the grid standing out, after the left
             image's textured regions were looked at too: find_textured_area would find
             nothing more.
@@ -278,6 +284,7 @@ class CorrelationArea:
     outline: str = OUTLINE_MATCHES
     face_in_pieces: CorrelationArea | None = None
     scattered_face: CorrelationArea | None = None
+    face_at_mode: CorrelationArea | None = None
     texture_tried: bool = False
 
     def point_weights(self) -> np.ndarray:
@@ -529,8 +536,7 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
     do), a textured region of the image whose matches stand out is an object too."""
     m = measured
     points_in, valid, world, surface = m.points_in, m.valid, m.world, m.surface
-    u_left, v_left, u_right, score, disparity, per_px, sigma, heights = (
-        m.u_left, m.v_left, m.u_right, m.score, m.disparity, m.per_px, m.sigma, m.heights)
+    u_left, v_left, per_px, sigma, heights = m.u_left, m.v_left, m.per_px, m.sigma, m.heights
 
     def refused(status: str, why: str, surface: SurfacePlane = ASSUMED_SURFACE,
                 regions: int = 0, sigmas: float = math.nan) -> CorrelationArea:
@@ -594,7 +600,6 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
                                   f'disparity noise {surface.disparity_sigma_px:.2f} px): '
                                   + detail, surface, regions, found.median_sigmas), True
     member = labels == found.label
-    top = found.top_m
     # The face: points near the region, within the band of the top, whose neighbourhood
     # stands at least half as high. Half height is where the averaging square sits half on
     # the face, so the face's rim is found where it is, not where noise cut the region; the
@@ -603,6 +608,37 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
     # A textured region is the object's image already; beyond it lie the plain surface's
     # mismatches, some at the top's height by chance.
     near = member if textured else grown_region(u_left, v_left, member, step, smoothing_px)
+    face = _top_face(measured, config, found, member, near, found.top_m, in_box, smoothed,
+                     textured)
+    if face.face_in_pieces is not None:
+        # The densest upper level of a top whose own heights spread wider than the surface's
+        # noise lies on the upper side of their spread, and the band below it then holds
+        # only their upper part: a face in pieces. At the mode of its heights the face may
+        # pass every test; a plain top's whole face in the image comes first all the same
+        # (point_selectors.decision_area), its matches being only the rim's.
+        mode = top_mode(heights[member], sigma[member], found.top_m)
+        at_mode = _top_face(measured, config, found, member, near, mode, in_box, smoothed,
+                            textured)
+        if at_mode.ok:
+            face = dataclasses.replace(face, face_at_mode=at_mode)
+    return face, False
+
+
+def _top_face(measured: _MeasuredPoints, config: AreaConfig, found: ObjectRegion,
+              member: np.ndarray, near: np.ndarray, top: float, in_box: np.ndarray,
+              smoothed: np.ndarray, textured: bool) -> CorrelationArea:
+    """Return the object's top face at height `top` (the points of `near` within its band),
+    or why it is refused: too few points, too high, too long, scattered or in pieces."""
+    m = measured
+    points_in, valid, world, surface = m.points_in, m.valid, m.world, m.surface
+    u_left, v_left, u_right, score, disparity, per_px, sigma, heights = (
+        m.u_left, m.v_left, m.u_right, m.score, m.disparity, m.per_px, m.sigma, m.heights)
+    regions, step = found.regions, grid_step(u_left, v_left)
+
+    def refused(status: str, why: str) -> CorrelationArea:
+        return _refused(status, why, points_in, valid, surface, regions, found.median_sigmas)
+
+    residual_px = heights / per_px
     # The face's own noise: a textured top can be matched worse than the surface (and has
     # systematic errors of its own); its spread above the top, where no side wall lies, is
     # half of a normal distribution.
@@ -615,20 +651,17 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
     used = len(band)
     if used < config.min_points:
         return refused(TOO_FEW_POINTS, f"{used} points on the object's top face, need "
-                                       f'min_points={config.min_points}', surface, regions,
-                       found.median_sigmas), False
+                                       f'min_points={config.min_points}')
     xyz_world = np.ascontiguousarray(world[:, band].T)
     if top > config.max_object_height_m:
         return refused(NO_OBJECT, f'the top face found stands {1000.0 * top:.0f} mm above the '
                                   'work surface, higher than any object '
-                                  f'(max_object_height_m={config.max_object_height_m:g})',
-                       surface, regions, found.median_sigmas), False
+                                  f'(max_object_height_m={config.max_object_height_m:g})')
     length = across_m(xyz_world[:, :2])
     if length > config.max_object_across_m:
         return refused(NO_OBJECT, f'the top face found is {1000.0 * length:.0f} mm long on the '
                                   'work surface, longer than any object '
-                                  f'(max_object_across_m={config.max_object_across_m:g})',
-                       surface, regions, found.median_sigmas), False
+                                  f'(max_object_across_m={config.max_object_across_m:g})')
     face_heights = heights[band]
     # The scatter the points' own noise does not explain: a far rig's face scatters by its
     # noise and is still one level face; side-wall, table or badly matched points add to it.
@@ -651,14 +684,12 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
                f'{config.max_top_spread_m:g}: not measured well enough for a point')
         # The plain-top fallbacks (face_outline.py) would take the plain pixels around a
         # textured object, the surface, for its face.
-        return dataclasses.replace(refused(UNCERTAIN_TOP, why, surface, regions,
-                                           found.median_sigmas),
-                                   scattered_face=None if textured else face), False
+        return dataclasses.replace(refused(UNCERTAIN_TOP, why),
+                                   scattered_face=None if textured else face)
     fill = hull_fill(u_left[band], v_left[band], step)
     if fill < config.min_top_fill:
         in_pieces = refused(UNCERTAIN_TOP, f"the top face's matches fill {100.0 * fill:.0f} % of "
                                            f'its outline in the image, less than min_top_fill='
-                                           f'{config.min_top_fill:g}: a face in pieces',
-                            surface, regions, found.median_sigmas)
-        return dataclasses.replace(in_pieces, face_in_pieces=None if textured else face), False
-    return face, False
+                                           f'{config.min_top_fill:g}: a face in pieces')
+        return dataclasses.replace(in_pieces, face_in_pieces=None if textured else face)
+    return face

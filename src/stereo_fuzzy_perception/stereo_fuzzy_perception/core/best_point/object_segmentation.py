@@ -48,6 +48,12 @@ TOP_DENSE_SHARE = 0.25
 TOP_WINDOW_SIGMAS = 2.0
 """The top height is the median of the heights within this many sigmas of the dense top bin."""
 
+TOP_MODE_ITERATIONS = 100
+"""Most steps top_mode takes (each moves the level by at most TOP_WINDOW_SIGMAS)."""
+
+TOP_MODE_TOLERANCE = 1e-3
+"""top_mode stops when a step moves the level by less than this share of its window."""
+
 TALL_REGION_SHARE = 4.0
 """A region whose median stands this many times object_sigmas out, yet whose densest heights
 are the surface's, has its top taken from its points standing OFF_SURFACE_SIGMAS up: a tall
@@ -394,6 +400,31 @@ def top_height(heights: np.ndarray, sigmas: np.ndarray) -> float:
         if not len(near):
             break
         level = float(np.median(near))
+    return level
+
+
+def top_mode(heights: np.ndarray, sigmas: np.ndarray, start: float) -> float:
+    """Return the mode [m] of an object's top heights nearest `start` (a top_height).
+
+    The median of the heights within TOP_WINDOW_SIGMAS of the level, taken again until it no
+    longer moves (at most TOP_MODE_ITERATIONS times): where the top's own heights spread wider
+    than the surface's noise, top_height's few steps leave the level on their upper side.
+
+    Args:
+        heights: (M,) heights above the surface [m], M > 0.
+        sigmas: (M,) their standard deviations [m].
+        start: The level to start from [m].
+    """
+    window = TOP_WINDOW_SIGMAS * max(float(np.median(sigmas)), 1e-6)
+    level = start
+    for _ in range(TOP_MODE_ITERATIONS):
+        near = heights[np.abs(heights - level) <= window]
+        if not len(near):
+            break
+        moved = float(np.median(near))
+        if abs(moved - level) <= TOP_MODE_TOLERANCE * window:
+            return moved
+        level = moved
     return level
 
 

@@ -417,6 +417,8 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
             area = (plain_face_from_image(pieces, points.left_image, left, right,
                                           world_from_camera, config.min_points,
                                           config.max_object_across_m)
+                    or _face_at_mode(area, points.left_image, left, right, world_from_camera,
+                                     config.min_points)
                     or _outlined_pieces(pieces, points.left_image, left, right,
                                         world_from_camera, config)
                     or area)
@@ -464,6 +466,17 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
         area = low_face_from_appearance(area, points.left_image, left, right,
                                         world_from_camera, config.min_points) or area
     return area
+
+
+def _face_at_mode(area: CorrelationArea, image: RectifiedImage, left: CameraCalibration,
+                  right: CameraCalibration, world_from_camera: np.ndarray, min_points: int
+                  ) -> CorrelationArea | None:
+    """Return a face in pieces taken at the mode of its heights (CorrelationArea.face_at_mode),
+    outlined from the image where it can be, or None when there is none."""
+    if area.face_at_mode is None:
+        return None
+    return face_from_image(area.face_at_mode, image, left, right, world_from_camera,
+                           min_points) or area.face_at_mode
 
 
 def _matches_step(points: MatchedPoints) -> float:
