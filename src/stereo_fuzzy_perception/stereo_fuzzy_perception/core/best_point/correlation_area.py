@@ -609,7 +609,7 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
     # mismatches, some at the top's height by chance.
     near = member if textured else grown_region(u_left, v_left, member, step, smoothing_px)
     face = _top_face(measured, config, found, member, near, found.top_m, in_box, smoothed,
-                     textured)
+                     step, textured)
     if face.face_in_pieces is not None:
         # The densest upper level of a top whose own heights spread wider than the surface's
         # noise lies on the upper side of their spread, and the band below it then holds
@@ -618,7 +618,7 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
         # (point_selectors.decision_area), its matches being only the rim's.
         mode = top_mode(heights[member], sigma[member], found.top_m)
         at_mode = _top_face(measured, config, found, member, near, mode, in_box, smoothed,
-                            textured)
+                            step, textured)
         if at_mode.ok:
             face = dataclasses.replace(face, face_at_mode=at_mode)
     return face, False
@@ -626,14 +626,14 @@ def _object_area(measured: _MeasuredPoints, config: AreaConfig, smoothing_px: fl
 
 def _top_face(measured: _MeasuredPoints, config: AreaConfig, found: ObjectRegion,
               member: np.ndarray, near: np.ndarray, top: float, in_box: np.ndarray,
-              smoothed: np.ndarray, textured: bool) -> CorrelationArea:
+              smoothed: np.ndarray, step: float, textured: bool) -> CorrelationArea:
     """Return the object's top face at height `top` (the points of `near` within its band),
     or why it is refused: too few points, too high, too long, scattered or in pieces."""
     m = measured
     points_in, valid, world, surface = m.points_in, m.valid, m.world, m.surface
     u_left, v_left, u_right, score, disparity, per_px, sigma, heights = (
         m.u_left, m.v_left, m.u_right, m.score, m.disparity, m.per_px, m.sigma, m.heights)
-    regions, step = found.regions, grid_step(u_left, v_left)
+    regions = found.regions
 
     def refused(status: str, why: str) -> CorrelationArea:
         return _refused(status, why, points_in, valid, surface, regions, found.median_sigmas)
