@@ -638,11 +638,11 @@ def _top_face(measured: _MeasuredPoints, config: AreaConfig, found: ObjectRegion
     def refused(status: str, why: str) -> CorrelationArea:
         return _refused(status, why, points_in, valid, surface, regions, found.median_sigmas)
 
-    residual_px = heights / per_px
     # The face's own noise: a textured top can be matched worse than the surface (and has
     # systematic errors of its own); its spread above the top, where no side wall lies, is
     # half of a normal distribution.
-    above = residual_px[member & (heights > top)] - top / per_px[member & (heights > top)]
+    over = member & (heights > top)
+    above = heights[over] / per_px[over] - top / per_px[over]
     face_px = float(np.median(above)) / HALF_NORMAL_MEDIAN if len(above) >= 10 else 0.0
     band_sigma = max(surface.disparity_sigma_px, face_px) * per_px
     band = np.flatnonzero(near & in_box & (heights - top <= config.top_band_sigmas * band_sigma)

@@ -116,7 +116,8 @@ def plain_object_from_image(refused: CorrelationArea, points: MatchedPoints,
     base = dataclasses.replace(refused, status=STATUS_OK, reason='', u_left=u[:1],
                                v_left=v[:1], u_right=u[:1], xyz_world=np.zeros((1, 3)),
                                score=np.array([float(np.median(points.score[finite]))]),
-                               weight=None, face_in_pieces=None, scattered_face=None)
+                               weight=None, face_in_pieces=None, scattered_face=None,
+                               face_at_mode=None)
     outlines = [outline for outline in (
         _plain_outline(smooth, rows, columns, grey_level, base, step, points, left, right,
                        world_from_camera, config) for rows, columns in seeds)
