@@ -19,7 +19,8 @@ images at once, pixel by pixel, with no window:
   mismatch costs (the crop's median cost at the top's disparity far from the area). Labels
   are soft across one pixel, so the summed cost moves smoothly with the shape.
 - Both shapes are fitted by Nelder-Mead from the chain's point and its area's principal axes
-  (and, with --starts 5, from four starts half a pixel's step around it); the lower cost wins.
+  (with --starts 5 also from four starts 2 px around it; with --restarts K started again where
+  its simplex stalled, up to K times); the lower cost wins.
 
 The fitted centre alone is no better than the chain's (the lowest cost often lies on the wrong
 shape or a few millimetres off); their blend is, where the fit stands within --max-move-mm of
@@ -29,7 +30,7 @@ shape per start, far beyond fuzzy_best_point_node's budget at 30 Hz: the reason 
 
     source scripts/env.sh
     nice python benchmarks/outline_fit_probe.py --split train --save /tmp/fit_train.json
-    nice python benchmarks/outline_fit_probe.py --split validation --starts 5
+    nice python benchmarks/outline_fit_probe.py --split validation --restarts 3
 """
 
 from __future__ import annotations
@@ -220,7 +221,7 @@ class ShapeFit:
 
 
 def fit_top(costs: PixelCosts, guess: np.ndarray, axes: tuple[float, float, float],
-            starts: int) -> ShapeFit:
+            starts: int, restarts: int = 0) -> ShapeFit:
     """Fit a disc and a rectangle from the guessed centre (x, y) and the area's principal axes
     (angle, long side, short side); return the one of lower cost."""
     angle, long_side, short_side = axes
@@ -242,6 +243,18 @@ def fit_top(costs: PixelCosts, guess: np.ndarray, axes: tuple[float, float, floa
                                        method='Nelder-Mead', options={
                                            'initial_simplex': simplex, 'xatol': 1e-5,
                                            'fatol': 0.5, 'maxiter': 400})
+            for _ in range(restarts):
+                # Nelder-Mead's simplex collapses short of the minimum; started again from
+                # where it stopped, with a simplex of the first one's size, it goes on
+                simplex = np.vstack([result.x] + [result.x + np.eye(len(start))[i] * scales[i]
+                                                  for i in range(len(start))])
+                again = optimize.minimize(costs.cost, result.x, args=(SHAPES[name],),
+                                          method='Nelder-Mead', options={
+                                              'initial_simplex': simplex, 'xatol': 1e-5,
+                                              'fatol': 0.5, 'maxiter': 400})
+                if again.fun >= result.fun - 0.5:
+                    break
+                result = again
             if best is None or result.fun < best[0]:
                 best = (float(result.fun), name, result.x)
     assert best is not None
@@ -277,6 +290,8 @@ def main() -> None:
     parser.add_argument('--cache', default='/tmp/rig_tuning_cache',
                         help="rig_tuning.py's cache of matched scenes (stride 1)")
     parser.add_argument('--starts', type=int, default=1, choices=(1, 5))
+    parser.add_argument('--restarts', type=int, default=0,
+                        help='start Nelder-Mead again from where it stopped, up to this often')
     parser.add_argument('--save', metavar='FILE', help="write each scene's points (JSON)")
     args = parser.parse_args()
     chooser = BestPointChooser.create('fuzzy_fitted', AreaConfig(), StereoRig())
@@ -290,8 +305,8 @@ def main() -> None:
         chain = np.asarray(decision.best_point_world, dtype=float)
         area = decision_area(scene.points, scene.left, scene.right, pose, AreaConfig())
         costs = pixel_costs(scene, area, pose) if area.ok else None
-        fit = (fit_top(costs, chain[:2], principal_axes(area.xyz_world[:, :2]), args.starts)
-               if costs is not None else None)
+        fit = (fit_top(costs, chain[:2], principal_axes(area.xyz_world[:, :2]), args.starts,
+                       args.restarts) if costs is not None else None)
         target = np.asarray(scene.target_world, dtype=float)
         rows.append((label, chain, fit, target))
         fitted = (f', fitted {fit.shape} {1000.0 * np.linalg.norm(fit.centre - target[:2]):5.1f}'
