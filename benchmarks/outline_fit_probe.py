@@ -137,8 +137,8 @@ class PixelCosts:
             (1.0 - hidden) * self.surface_cost + hidden * self.mismatch)))
 
 
-def pixel_costs(scene: SyntheticScene, area: CorrelationArea, pose: np.ndarray
-                ) -> PixelCosts | None:
+def pixel_costs(scene: SyntheticScene, area: CorrelationArea, pose: np.ndarray,
+                samples: int = SAMPLES) -> PixelCosts | None:
     """Return the costs of the crop around the area, or None when the top barely stands out
     in disparity or the crop leaves either image."""
     left_image, right_image = scene.points.left_image, scene.points.right_image
@@ -185,7 +185,7 @@ def pixel_costs(scene: SyntheticScene, area: CorrelationArea, pose: np.ndarray
 
     top_cost, surface_cost = cost_at(area.top_height), np.minimum(
         np.abs(surface_grey - expected) / unit, CAP)
-    fractions = np.linspace(0.1, 1.0, SAMPLES)
+    fractions = np.linspace(0.1, 1.0, samples)
     wall_cost = np.array([cost_at(area.top_height * (1.0 - t)) for t in fractions])
     rectification = np.asarray(scene.left.R, dtype=float).reshape(3, 3)
     intrinsic = np.asarray(scene.left.P, dtype=float)[:3, :3]
@@ -202,7 +202,7 @@ def pixel_costs(scene: SyntheticScene, area: CorrelationArea, pose: np.ndarray
     right_centre = centre + pose[:3, :3] @ rectification.T @ np.array([baseline, 0.0, 0.0])
     down_wall = np.array([on_top + (on_surface[:2].T - on_top) * t for t in fractions])
     view = []
-    for t in np.linspace(0.05, 1.0, SAMPLES):
+    for t in np.linspace(0.05, 1.0, samples):
         level = surface_level + t * (top_level - surface_level)
         reach = (level - on_surface[2]) / (right_centre[2] - on_surface[2])
         view.append((on_surface[:2] + (right_centre[:2, None] - on_surface[:2]) * reach).T)
@@ -292,6 +292,8 @@ def main() -> None:
     parser.add_argument('--starts', type=int, default=1, choices=(1, 5))
     parser.add_argument('--restarts', type=int, default=0,
                         help='start Nelder-Mead again from where it stopped, up to this often')
+    parser.add_argument('--samples', type=int, default=SAMPLES,
+                        help='heights sampled down the side wall and to the right camera')
     parser.add_argument('--save', metavar='FILE', help="write each scene's points (JSON)")
     args = parser.parse_args()
     chooser = BestPointChooser.create('fuzzy_fitted', AreaConfig(), StereoRig())
@@ -304,7 +306,7 @@ def main() -> None:
             continue
         chain = np.asarray(decision.best_point_world, dtype=float)
         area = decision_area(scene.points, scene.left, scene.right, pose, AreaConfig())
-        costs = pixel_costs(scene, area, pose) if area.ok else None
+        costs = pixel_costs(scene, area, pose, max(2, args.samples)) if area.ok else None
         fit = (fit_top(costs, chain[:2], principal_axes(area.xyz_world[:, :2]), args.starts,
                        args.restarts) if costs is not None else None)
         target = np.asarray(scene.target_world, dtype=float)
