@@ -22,15 +22,17 @@ images at once, pixel by pixel, with no window:
   (with --starts 5 also from four starts 2 px around it; with --restarts K started again where
   its simplex stalled, up to K times); the lower cost wins.
 
-The fitted centre alone is no better than the chain's (the lowest cost often lies on the wrong
-shape or a few millimetres off); their blend is, where the fit stands within --max-move-mm of
-the chain's point and lowered the cost by --min-drop per pixel. The probe prints the chain's
-and the blends' outcomes on the split's decided scenes. It takes about 1.5 s per scene and
-shape per start, far beyond fuzzy_best_point_node's budget at 30 Hz: the reason it is a probe.
+The fitted centre is taken only where it lies within a few millimetres of the chain's point
+and lowered the cost clearly (a small drop per pixel is a fit that found nothing), alone or
+blended with the chain's point: the probe prints the outcomes of several such rules (weight
+of the fit, furthest move, least drop) on the split's decided scenes, beside the chain's. It
+takes a few seconds per scene, far beyond fuzzy_best_point_node's budget at 30 Hz: the
+reason it is a probe.
 
     source scripts/env.sh
     nice python benchmarks/outline_fit_probe.py --split train --save /tmp/fit_train.json
-    nice python benchmarks/outline_fit_probe.py --split validation --restarts 3
+    nice python benchmarks/outline_fit_probe.py --split validation
+    nice python benchmarks/outline_fit_probe.py --samples 10 --restarts 0   # the first version
 """
 
 from __future__ import annotations
@@ -79,8 +81,12 @@ FAR_PX = 15
 MIN_PARALLAX_PX = 1.5
 """A top whose plane and the surface's differ by less in the right image is not fitted."""
 
-SAMPLES = 10
-"""Heights sampled down the side wall and along the right camera's view to the surface."""
+SAMPLES = 30
+"""Heights sampled down the side wall and along the right camera's view to the surface (10
+quantise a tall wall's disparity too coarsely: the fit then prefers wrong shapes)."""
+
+RESTARTS = 3
+"""Nelder-Mead is started again where its simplex stalled, up to this often."""
 
 
 def disc_distance(xy: np.ndarray, shape: np.ndarray) -> np.ndarray:
@@ -290,7 +296,7 @@ def main() -> None:
     parser.add_argument('--cache', default='/tmp/rig_tuning_cache',
                         help="rig_tuning.py's cache of matched scenes (stride 1)")
     parser.add_argument('--starts', type=int, default=1, choices=(1, 5))
-    parser.add_argument('--restarts', type=int, default=0,
+    parser.add_argument('--restarts', type=int, default=RESTARTS,
                         help='start Nelder-Mead again from where it stopped, up to this often')
     parser.add_argument('--samples', type=int, default=SAMPLES,
                         help='heights sampled down the side wall and to the right camera')
