@@ -127,7 +127,7 @@ class PixelCosts:
     surface_cost: np.ndarray  # (N,)
     mismatch: float
 
-    def cost(self, shape: np.ndarray, distance) -> float:
+    def cost(self, shape: np.ndarray, distance: Distance) -> float:
         """Return the summed cost of the pixels labelled by the shape."""
         top = np.clip(0.5 - distance(self.on_top, shape) / self.metres_per_px, 0.0, 1.0)
         along_wall = distance(self.down_wall, shape)
