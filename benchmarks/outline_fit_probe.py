@@ -295,6 +295,8 @@ def main() -> None:
     parser.add_argument('--per-type', type=int, default=50)
     parser.add_argument('--cache', default='/tmp/rig_tuning_cache',
                         help="rig_tuning.py's cache of matched scenes (stride 1)")
+    parser.add_argument('--oversampling', type=int, default=1, choices=(1, 3),
+                        help="the split rendered antialiased (rig_tuning.py's cache of it)")
     parser.add_argument('--starts', type=int, default=1, choices=(1, 5))
     parser.add_argument('--restarts', type=int, default=RESTARTS,
                         help='start Nelder-Mead again from where it stopped, up to this often')
@@ -304,7 +306,8 @@ def main() -> None:
     args = parser.parse_args()
     chooser = BestPointChooser.create('fuzzy_fitted', AreaConfig(), StereoRig())
     rows = []
-    for label, scene in scenes(args.split, args.per_type, 1, Path(args.cache), 2):
+    for label, scene in scenes(args.split, args.per_type, 1, Path(args.cache), 2,
+                               args.oversampling):
         pose = scene.rig.world_from_left_camera()
         decision = replace(chooser, world_from_camera=pose).decide(scene.points, scene.left,
                                                                    scene.right)
