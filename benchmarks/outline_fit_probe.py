@@ -25,14 +25,14 @@ images at once, pixel by pixel, with no window:
 The fitted centre is taken only where it lies within a few millimetres of the chain's point
 and lowered the cost clearly (a small drop per pixel is a fit that found nothing), alone or
 blended with the chain's point: the probe prints the outcomes of several such rules (weight
-of the fit, furthest move, least drop) on the split's decided scenes, beside the chain's. It
-takes a few seconds per scene, far beyond fuzzy_best_point_node's budget at 30 Hz: the
-reason it is a probe.
+of the fit, furthest move, least drop) on the split's decided scenes, beside the chain's. Its
+cost per pair is far beyond fuzzy_best_point_node's budget at 30 Hz (benchmarks/EXPERIMENTS.md
+gives it): the reason it is a probe.
 
     source scripts/env.sh
     nice python benchmarks/outline_fit_probe.py --split train --save /tmp/fit_train.json
     nice python benchmarks/outline_fit_probe.py --split validation
-    nice python benchmarks/outline_fit_probe.py --samples 10 --restarts 0   # the first version
+    nice python benchmarks/outline_fit_probe.py --samples 10 --restarts 0   # coarser, faster
 """
 
 from __future__ import annotations

@@ -180,7 +180,6 @@ def test_a_top_face_in_pieces_is_uncertain_not_taken():
     assert allowed.status == STATUS_OK, allowed.reason
 
 
-
 @pytest.mark.parametrize(('face_noise_mm', 'seed'), [(0.5, 0), (0.5, 2), (0.5, 3), (0.8, 1),
                                                      (0.8, 2), (0.8, 3)])
 def test_a_top_matched_worse_than_the_table_comes_whole_at_its_mode(face_noise_mm, seed):
