@@ -114,9 +114,14 @@ def camera_distance(rig: StereoRig) -> float:
     return rig.z0_m / math.cos(math.radians(rig.alpha_deg))
 
 
+WALL_SAMPLES = 60
+"""Heights a ray is followed at from a box's top down to the ground, for where it meets a wall."""
+
+
 def plain_box_pair(rig: StereoRig, box: Box, top_grey: float = 140.0, wall_grey: float = 70.0,
                    noise_grey: float = 1.5, seed: int = 0, fov_deg: float = 45.0,
-                   right_gain: float = 1.0, right_offset: float = 0.0
+                   right_gain: float = 1.0, right_offset: float = 0.0,
+                   top_texture: float = 0.0, walls_from_footprint: bool = False
                    ) -> tuple[RectifiedImage, RectifiedImage, CameraCalibration,
                               CameraCalibration, np.ndarray]:
     """Return both rectified images of a plain-topped box on a textured table, ray-cast.
@@ -124,8 +129,11 @@ def plain_box_pair(rig: StereoRig, box: Box, top_grey: float = 140.0, wall_grey:
     The table's texture is fixed on the table (a smooth random field in world x, y, 1 mm
     cells), so both cameras see the same texture where it lies; the top is `top_grey` and its
     walls `wall_grey`, both with sensor noise only; the right camera has its own gain and
-    offset. Returns (left image, right image, left and right rectified calibrations, the top's
-    outline (K, 2) in the left image [px]).
+    offset. `top_texture` gives the top a texture of its own, fixed on it as the table's is on
+    the table (its standard deviation in grey levels). `walls_from_footprint` draws a wall only
+    where the ray's ground point lies in the footprint, as these images were first drawn: the
+    rays that clip a wall's corner then show the table. Returns (left image, right image, left
+    and right rectified calibrations, the top's outline (K, 2) in the left image [px]).
     """
     left, right = rectified_calibration(rig, default_camera_matrix(vertical_fov_deg=fov_deg))
     focal, cx, cy = left.P[0, 0], left.P[0, 2], left.P[1, 2]
@@ -145,11 +153,22 @@ def plain_box_pair(rig: StereoRig, box: Box, top_grey: float = 140.0, wall_grey:
             ground = centre + ((-centre[2]) / rays[..., 2])[..., None] * rays
             top = centre + ((box.height - centre[2]) / rays[..., 2])[..., None] * rays
         on_top = box.covers(top[..., 0], top[..., 1])
-        on_wall = ~on_top & box.covers(ground[..., 0], ground[..., 1])
+        # a wall where the ray, between the top's level and the ground, passes over the
+        # footprint: it enters the box's side there (a ray clipping a corner too)
+        on_wall = np.zeros_like(on_top)
+        for share in [1.0] if walls_from_footprint else np.linspace(0.0, 1.0, WALL_SAMPLES):
+            along = top + share * (ground - top)
+            on_wall |= box.covers(along[..., 0], along[..., 1])
+        on_wall &= ~on_top
         table = ndimage.map_coordinates(cells, [(ground[..., 1] + 0.2) * 1000.0,
                                                 (ground[..., 0] + 0.2) * 1000.0],
                                         order=1, mode='wrap')
-        grey = np.where(on_top, top_grey, np.where(on_wall, wall_grey, 110.0 + table))
+        # the top's texture: the table's field, turned and shifted so the two differ
+        on_top_texture = ndimage.map_coordinates(cells, [(top[..., 0] + 0.3) * 1000.0,
+                                                         (top[..., 1] + 0.1) * 1000.0],
+                                                 order=1, mode='wrap')
+        top_value = top_grey + (top_texture / 30.0) * on_top_texture
+        grey = np.where(on_top, top_value, np.where(on_wall, wall_grey, 110.0 + table))
         grey = gain * (grey + rng.normal(0.0, noise_grey, grey.shape)) + offset
         images.append(RectifiedImage(np.clip(np.round(grey), 0, 255).astype(np.uint8)))
     half = 0.5 * box.size

