@@ -266,3 +266,52 @@ def test_a_face_too_thin_at_stride_3_is_matched_again_at_stride_1(harness):
     assert run.decisions[3].status.startswith('too_few_points')
     assert 'not matched again at point stride 1' in run.decisions[3].status
     assert len(run.points) == 1, 'no point from either'
+
+
+def test_an_objects_top_is_fitted_once_and_its_fit_moves_the_points_that_follow(harness):
+    from rclpy.parameter import Parameter
+    from std_msgs.msg import Header
+    from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+    from stereo_fuzzy_perception.nodes.conversions import stereo_matches_message
+    from stereo_fuzzy_perception.simulation.distribution_source import match_scene
+    from stereo_fuzzy_perception.simulation.scene_distribution import split_plan
+
+    # training scene seed 1000019: a printed box whose outline from the image is cut short
+    # on one side; both images give the top's shape (top_shape_fit.py)
+    planned = split_plan('train', 5)[19]
+    scene = match_scene(planned.draw(), (1,))
+    matched = scene.matched[1]
+    msg = stereo_matches_message(Header(frame_id='left_camera_optical_frame'),
+                                 StereoCalibration(matched.left, matched.right),
+                                 matched.points, scene.matcher, point_stride=1)
+    rig = planned.rig.rig
+    run = harness({f'rig.{name}': float(getattr(rig, name)) for name in (
+        'baseline_m', 'alpha_deg', 'theta_deg', 'x0_m', 'y0_m', 'z0_m', 'vergence_deg')}
+        | {'second_look_stride_one': False})
+    for stamp in (1, 2):
+        msg.header.stamp.sec = stamp
+        run.send(msg, stamp)
+    wait_until(lambda: len(run.points) == 2, TIMEOUT, 'two best points', run.executor)
+
+    def point_of(message):
+        return np.array([message.point.x, message.point.y, message.point.z])
+
+    np.testing.assert_allclose(point_of(run.points[1]), point_of(run.points[0]))
+
+    def counted():
+        values = ({kv.key: kv.value for kv in run.diagnostics[-1].status[0].values}
+                  if run.diagnostics else {})
+        return (values.get('top shapes fitted') == '1'
+                and values.get('top shapes reused for the same object') == '1'
+                and values.get('points moved toward a fitted top') == '2')
+
+    wait_until(counted, TIMEOUT, 'diagnostics counting one fit, reused once, two points moved',
+               run.executor)
+    assert run.node.set_parameters([Parameter('fit_top_shape', value=False)])[0].successful
+    msg.header.stamp.sec = 3
+    run.send(msg, 3)
+    wait_until(lambda: len(run.points) == 3, TIMEOUT, 'the point without the fit', run.executor)
+    fitted, unfitted = point_of(run.points[0]), point_of(run.points[2])
+    assert np.linalg.norm(fitted - unfitted) > 1e-4, 'the fit moved the point'
+    assert (np.linalg.norm(fitted - matched.target_world)
+            < np.linalg.norm(unfitted - matched.target_world)), 'toward the top-face centre'

@@ -37,7 +37,7 @@ from stereo_fuzzy_parameters.declaration import declare_settings, run_node
 from visualization_msgs.msg import MarkerArray
 
 from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
-from stereo_fuzzy_perception.core.best_point import four_areas
+from stereo_fuzzy_perception.core.best_point import four_areas, top_shape_fit
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     DEGENERATE_AREA,
     NO_OBJECT,
@@ -55,6 +55,7 @@ from stereo_fuzzy_perception.core.best_point.point_selectors import (
     load_selector_files,
 )
 from stereo_fuzzy_perception.core.best_point.second_look import decide_with_second_look
+from stereo_fuzzy_perception.core.best_point.top_shape_fit import TopShapeMemory
 from stereo_fuzzy_perception.core.camera_calibration_file import (
     CalibrationFileError,
     read_calibration_yaml,
@@ -106,9 +107,11 @@ def build_chooser(settings: FuzzyBestPointSettings) -> BestPointChooser:
             names the parameter and its value.
     """
     try:
-        return BestPointChooser.create(
+        chooser = BestPointChooser.create(
             settings.selector, settings.area_config(), settings.rig.stereo_rig(),
             rule_base_file=settings.rule_base_file, weights_file=settings.network_file)
+        # a camera sees a standing object for many pairs: its top is fitted on the first
+        return dataclasses.replace(chooser, top_shape_memory=TopShapeMemory())
     except SelectorError as error:
         # Name the file parameter the selector read, so the reason says what to change.
         if settings.selector == 'neural_network' and settings.network_file:
@@ -201,8 +204,9 @@ class FuzzyBestPointNode(Node):
         # Compile (first run) or load the numba point kernel now, not on the first input.
         started = time.monotonic()
         four_areas.warm_up()
+        top_shape_fit.warm_up()
         self.get_logger().info(
-            f'point kernel ready in {time.monotonic() - started:.2f} s (numba compile or cache)')
+            f'point kernels ready in {time.monotonic() - started:.2f} s (numba compile or cache)')
         self.decisions: Counter[str] = Counter({STATUS_OK: 0, **dict.fromkeys(
             REFUSAL_REASONS, 0)})
         self._last_status = 'waiting for input'
@@ -410,6 +414,11 @@ class FuzzyBestPointNode(Node):
         values += [('matched again at point stride 1', self.second_looks['looked']),
                    ('points from matching again', self.second_looks['found'])]
         with self._lock:
+            memory = self._chooser.top_shape_memory
+            if memory is not None and self._chooser.area_config.fit_top_shape:
+                values += [('top shapes fitted', memory.counts['fitted']),
+                           ('top shapes reused for the same object', memory.counts['recalled']),
+                           ('points moved toward a fitted top', memory.counts['moved'])]
             values += list(self.matches_sequence.report(topic_names.MATCHES).items())
         # Whether DDS has matched a writer to this reader: 0 while matches are published means
         # discovery has not connected the two nodes (nothing can arrive, nothing counts as lost).

@@ -164,6 +164,10 @@ class AreaConfig:
             matched anywhere along the search range. Then only the matches scoring at least
             this are used, and the surface is where the rig pose puts it (z = 0, source
             'plain', noise assumed_disparity_sigma_px); 0 turns this off.
+        fit_top_shape: When the matches come with both rectified images, fit the top face as
+            a disc or a rectangle to both, pixel by pixel (top_shape_fit.py), and move the
+            best point most of the way to the fitted centre where the two agree and the fit
+            is clear.
     """
 
     workspace_min: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -186,6 +190,7 @@ class AreaConfig:
     min_top_fill: float = 0.5
     outline_from_image: bool = True
     min_surface_score: float = 0.5
+    fit_top_shape: bool = True
 
     def problem(self) -> str | None:
         """Return why this configuration is unusable, or None."""

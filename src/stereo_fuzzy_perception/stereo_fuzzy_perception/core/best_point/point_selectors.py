@@ -68,6 +68,10 @@ from stereo_fuzzy_perception.core.best_point.rule_base import (
     load_rule_base,
     packaged_rule_base,
 )
+from stereo_fuzzy_perception.core.best_point.top_shape_fit import (
+    TopShapeMemory,
+    point_with_fitted_top,
+)
 from stereo_fuzzy_perception.core.best_point.work_surface import SurfacePlane
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
@@ -211,6 +215,8 @@ class BestPointChooser:
         world_from_camera: 4x4 pose of the matched points' frame (left optical) in `world`.
         rule_base: The fuzzy selectors' rule base (None otherwise).
         network: The neural_network selector's weights (None otherwise).
+        top_shape_memory: Where the fitted top of the last object seen is kept for the pairs
+            of the same object that follow (a node's; None: every decision fits its own).
     """
 
     selector: str
@@ -218,6 +224,7 @@ class BestPointChooser:
     world_from_camera: np.ndarray
     rule_base: RuleBase | None = None
     network: NeuralBaseline | None = None
+    top_shape_memory: TopShapeMemory | None = field(default=None, compare=False)
 
     @classmethod
     def create(cls, selector: str, area_config: AreaConfig, rig: StereoRig,
@@ -315,6 +322,9 @@ class BestPointChooser:
             horizontal = result.point
             height_offset = self.rule_base.height_offset_m
         point = np.array([horizontal[0], horizontal[1], area.top_height + height_offset])
+        if config.fit_top_shape and self.selector != 'max_score':
+            point = point_with_fitted_top(area, points, left, right, self.world_from_camera,
+                                          point, self.top_shape_memory)
         return self._choose(decision, point)
 
     def _choose(self, decision: BestPointDecision, point: np.ndarray) -> BestPointDecision:

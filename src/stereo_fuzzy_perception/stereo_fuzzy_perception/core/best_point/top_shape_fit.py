@@ -1,0 +1,570 @@
+"""The top face fitted as a disc or a rectangle to both images, pixel by pixel. ROS-free.
+
+The correlation area's outline comes from the left image's edges around the matches, and on
+coarse rigs it errs by about a pixel either way: a correlation window straddling the rim takes
+the disparity of whichever side is textured more. Here the outline is found from both images
+at once, pixel by pixel, with no window:
+
+- Each pixel of a crop around the area is compared with the right image where three surfaces
+  would put it: the top face's plane (at the area's top height), the work surface, and the
+  side wall (the planes between them, taken where the pixel's ray enters the object). The
+  cost of a pixel on a surface is |right - (gain * left + offset)| in units of the table's
+  contrast, capped at CAP (gain and offset fitted on the crop's pixels far from the area).
+- A top face is a disc (centre, radius) or a rectangle (centre, angle, sides) on the top's
+  plane. It labels each pixel: on the top when its ray meets the plane inside the shape, on
+  the wall when its ray enters the object's side before reaching the surface, on the surface
+  otherwise; a surface pixel that the object hides from the right camera costs what a
+  mismatch costs (the crop's median cost at the top's disparity far from the area). Labels
+  are soft across one pixel, so the summed cost moves smoothly with the shape.
+- Both shapes are fitted by Nelder-Mead from the area's point and principal axes, started
+  again where the simplex stalled; the lower cost wins.
+- To be cheap enough for a node: where a pixel's ray enters the object and whether the object
+  hides its surface point from the right camera are computed exactly for the two shapes (no
+  stepping down the ray), only the pixels whose label a shape near the starting ones can
+  change are scored shape by shape (BAND_M), and the cost runs in numba.
+
+BestPointChooser moves its point toward the fitted centre only where the fit agrees with it
+(within MAX_MOVE_M) and lowered the cost clearly (MIN_DROP per pixel): a fit that lowered the
+cost by little found nothing, and a periodic table can match the top's disparity a centimetre
+away. benchmarks/outline_fit_probe.py measures the rule's variants on the tuning splits.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numba
+import numpy as np
+from scipy import optimize
+
+from stereo_fuzzy_perception.core.best_point.correlation_area import CorrelationArea
+from stereo_fuzzy_perception.core.best_point.plain_top_height import _plane_disparity
+from stereo_fuzzy_perception.core.camera_model import CameraCalibration
+from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
+
+DISC, RECTANGLE = 0, 1
+SHAPE_NAMES = ('disc', 'rectangle')
+
+CAP = 1.5
+"""A pixel's cost is capped at this many times the table's grey-level spread."""
+
+MARGIN_PX = 25
+"""The crop reaches this far beyond the area."""
+
+FAR_PX = 15
+"""Pixels this far from the area are the table's: they fit gain and offset."""
+
+MIN_FAR_PIXELS = 200
+"""Fewer table pixels than this in the crop fit no gain and offset: no fit."""
+
+MIN_PARALLAX_PX = 1.5
+"""A top whose plane and the surface's differ by less in the right image is not fitted."""
+
+SAMPLES = 30
+"""Heights at which the side wall's cost is taken, from a tenth of the top's height below it
+down to the surface; a wall pixel costs what it does at the first of them below where its ray
+enters the object (10 quantise a tall wall's disparity too coarsely: the fit then prefers
+wrong shapes)."""
+
+RESTARTS = 3
+"""Nelder-Mead is started again where its simplex stalled, up to this often."""
+
+BAND_M = 0.005
+"""Shapes are scored on the pixels whose label a shape reaching this much further out or in
+than the guessed ones (and two pixels) can change: the fitted centre is taken only within
+MAX_MOVE_M of the guess."""
+
+MAX_MOVE_M = 0.005
+"""A fitted centre further than this from the chain's point is not taken."""
+
+MIN_DROP = 0.01
+"""...nor one that lowered the cost by less than this per pixel of the crop."""
+
+WEIGHT = 0.7
+"""The point is moved this share of the way to a fitted centre that passed both tests."""
+
+SAME_OBJECT_M = 0.004
+"""A TopShapeMemory gives its fit again for a point this close to the one it was made for
+(the fitted centre is still taken only within MAX_MOVE_M of the new point)."""
+
+MAX_TOP_WIDTH_PX = 100
+"""A face wider or taller than this in the left image is not fitted: the fit's cost grows
+with the crop, and the points it brought within 3 mm on the tuning splits were on narrower
+faces (benchmarks/EXPERIMENTS.md, nineteenth session)."""
+
+
+@dataclass(frozen=True)
+class TopShapeCosts:
+    """What every hypothesis of the top is scored on: a crop's pixels and their costs.
+
+    Arrays hold the band's pixels, laid out pixel first for the kernel (N pixels, S
+    heights)."""
+
+    on_top: np.ndarray  # (N, 2) where each pixel's ray meets the top's plane [m]
+    wall: np.ndarray  # (N, 4) x0, y0, x1, y1 [m]: the ray's path from below the top's plane
+    # to the surface, where it may enter the side wall
+    view: np.ndarray  # (N, 4) the surface point's view line to the right camera, up to the
+    # top's level: the object hides the point where it crosses the shape
+    metres_per_px: np.ndarray  # (N,) on the top's plane
+    top_cost: np.ndarray  # (N,)
+    wall_cost: np.ndarray  # (N, S) at each sampled wall height
+    surface_cost: np.ndarray  # (N,)
+    mismatch: float
+    constant: float  # the summed cost of the crop's pixels outside the band
+    pixels: int  # in the crop, band or not
+
+    def cost(self, shape: int, parameters: np.ndarray) -> float:
+        """Return the summed cost of the pixels labelled by the shape (DISC: cx, cy, radius;
+        RECTANGLE: cx, cy, angle, side along the angle, side across it)."""
+        return self.constant + float(_total_cost(
+            shape, np.asarray(parameters, dtype=np.float64), self.on_top, self.wall,
+            self.view, self.metres_per_px, self.top_cost, self.wall_cost, self.surface_cost,
+            self.mismatch))
+
+
+@dataclass(frozen=True)
+class TopShapeFit:
+    """The best shape found, its centre on the surface and how much it lowered the cost per
+    pixel of the crop against the area's own disc."""
+
+    shape: str
+    centre: np.ndarray  # (2,) [m]
+    drop_per_px: float
+
+
+@numba.njit(cache=True, nogil=True)
+def _signed_distance(shape: int, p: np.ndarray, cos: float, sin: float, x: float,
+                     y: float) -> float:
+    """Return the signed distance [m] of (x, y) from the shape: < 0 inside."""
+    dx: float = x - p[0]
+    dy: float = y - p[1]
+    if shape == DISC:
+        radius: float = p[2]
+        return math.sqrt(dx * dx + dy * dy) - radius
+    half_a: float = p[3] / 2.0
+    half_b: float = p[4] / 2.0
+    beyond_a = abs(cos * dx + sin * dy) - half_a
+    beyond_b = abs(-sin * dx + cos * dy) - half_b
+    outside_a, outside_b = max(beyond_a, 0.0), max(beyond_b, 0.0)
+    return math.sqrt(outside_a * outside_a + outside_b * outside_b) + min(
+        max(beyond_a, beyond_b), 0.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _segment_distance(x0: float, y0: float, x1: float, y1: float, cx: float,
+                      cy: float) -> float:
+    """Return the distance of (cx, cy) from the segment (x0, y0)-(x1, y1)."""
+    dx, dy = x1 - x0, y1 - y0
+    length2 = dx * dx + dy * dy
+    t = 0.0
+    if length2 > 0.0:
+        t = min(max(((cx - x0) * dx + (cy - y0) * dy) / length2, 0.0), 1.0)
+    ex, ey = x0 + t * dx - cx, y0 + t * dy - cy
+    return math.sqrt(ex * ex + ey * ey)
+
+
+@numba.njit(cache=True, nogil=True)
+def _slab(start: float, step: float, half: float) -> tuple[float, float]:
+    """Return the parameters (low, high) between which start + t * step lies within +-half."""
+    if abs(step) < 1e-15:
+        return (-1e30, 1e30) if abs(start) < half else (1e30, -1e30)
+    low, high = (-half - start) / step, (half - start) / step
+    return (low, high) if low <= high else (high, low)
+
+
+@numba.njit(cache=True, nogil=True)
+def _box_nearest(t: float, sx: float, sy: float, ex: float, ey: float, hx: float, hy: float,
+                 nearest: float, nearest_at: float) -> tuple[float, float]:
+    """Return the lesser of (nearest, nearest_at) and the signed distance of the point at t
+    (clipped to [0, 1]) of the segment (sx, sy) + t (ex, ey) from the box +-hx, +-hy, with t."""
+    t = min(max(t, 0.0), 1.0)
+    beyond_a, beyond_b = abs(sx + t * ex) - hx, abs(sy + t * ey) - hy
+    outside_a, outside_b = max(beyond_a, 0.0), max(beyond_b, 0.0)
+    distance = math.sqrt(outside_a * outside_a + outside_b * outside_b) + min(
+        max(beyond_a, beyond_b), 0.0)
+    return (distance, t) if distance < nearest else (nearest, nearest_at)
+
+
+@numba.njit(cache=True, nogil=True)
+def _segment_in_shape(shape: int, p: np.ndarray, cos: float, sin: float, x0: float, y0: float,
+                      x1: float, y1: float) -> tuple[float, float, float, float]:
+    """Return where the segment (x0, y0)-(x1, y1), as t in [0, 1], runs inside the shape
+    (t_in, t_out; t_in >= t_out when it never does), and the least signed distance of its
+    points from the shape with the t where it lies.
+
+    The shapes are convex and their signed distances convex along a line, so the least lies
+    at an end or where the line crosses a boundary between the distance's pieces: a side's
+    line, an axis or a diagonal of the inside, or the foot of a corner."""
+    ax, ay, dx, dy = x0 - p[0], y0 - p[1], x1 - x0, y1 - y0
+    if shape == DISC:
+        a, b, c = dx * dx + dy * dy, ax * dx + ay * dy, ax * ax + ay * ay - p[2] * p[2]
+        if a <= 0.0:
+            nearest = math.sqrt(ax * ax + ay * ay) - p[2]
+            return (-1e30, 1e30, nearest, 0.0) if c < 0.0 else (1e30, -1e30, nearest, 0.0)
+        foot = min(max(-b / a, 0.0), 1.0)
+        nx, ny = ax + foot * dx, ay + foot * dy
+        nearest = math.sqrt(nx * nx + ny * ny) - p[2]
+        discriminant = b * b - a * c
+        if discriminant <= 0.0:
+            return 1e30, -1e30, nearest, foot
+        root = math.sqrt(discriminant)
+        return (-b - root) / a, (-b + root) / a, nearest, foot
+    # in the rectangle's own axes
+    sx, sy = cos * ax + sin * ay, -sin * ax + cos * ay
+    ex, ey = cos * dx + sin * dy, -sin * dx + cos * dy
+    hx, hy = p[3] / 2.0, p[4] / 2.0
+    low_x, high_x = _slab(sx, ex, hx)
+    low_y, high_y = _slab(sy, ey, hy)
+    best = _box_nearest(0.0, sx, sy, ex, ey, hx, hy, 1e30, 0.0)
+    best = _box_nearest(1.0, sx, sy, ex, ey, hx, hy, *best)
+    for t in (low_x, high_x, low_y, high_y):
+        best = _box_nearest(t, sx, sy, ex, ey, hx, hy, *best)
+    length2 = ex * ex + ey * ey
+    if length2 > 0.0:
+        for corner_x, corner_y in ((hx, hy), (hx, -hy), (-hx, hy), (-hx, -hy)):
+            best = _box_nearest(((corner_x - sx) * ex + (corner_y - sy) * ey) / length2,
+                                sx, sy, ex, ey, hx, hy, *best)
+    for along, start in ((ex, sx), (ey, sy)):  # the axes, where |x| or |y| turns
+        if abs(along) > 1e-15:
+            best = _box_nearest(-start / along, sx, sy, ex, ey, hx, hy, *best)
+    gap = hx - hy
+    for along, start in ((ex - ey, sx - sy), (ex + ey, sx + sy)):
+        if abs(along) > 1e-15:
+            best = _box_nearest((gap - start) / along, sx, sy, ex, ey, hx, hy, *best)
+            best = _box_nearest((-gap - start) / along, sx, sy, ex, ey, hx, hy, *best)
+    nearest, nearest_at = best
+    return max(low_x, low_y), min(high_x, high_y), nearest, nearest_at
+
+
+@numba.njit(cache=True, nogil=True)
+def signed_distances(shape: int, p: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Return the signed distances [m] of the points xy (N, 2) from the shape: < 0 inside."""
+    cos, sin = (math.cos(p[2]), math.sin(p[2])) if shape == RECTANGLE else (1.0, 0.0)
+    result = np.empty(xy.shape[0])
+    for i in range(xy.shape[0]):
+        result[i] = _signed_distance(shape, p, cos, sin, xy[i, 0], xy[i, 1])
+    return result
+
+
+@numba.njit(cache=True, nogil=True)
+def _total_cost(shape: int, p: np.ndarray, on_top: np.ndarray, wall: np.ndarray,
+                view: np.ndarray, metres_per_px: np.ndarray, top_cost: np.ndarray,
+                wall_cost: np.ndarray, surface_cost: np.ndarray, mismatch: float) -> float:
+    """Return the summed cost of the pixels labelled by the shape (TopShapeCosts.cost).
+
+    A pixel's wall cost is the one of the first sampled height inside the object, as if the
+    ray were walked down in steps. A segment that passes further from the shape's centre
+    than its bounding radius (and half a pixel) cannot enter it and is not looked at."""
+    count, samples = wall.shape[0], wall_cost.shape[1]
+    if shape == DISC:
+        cos, sin, reach = 1.0, 0.0, p[2]
+    else:
+        cos, sin, reach = math.cos(p[2]), math.sin(p[2]), 0.5 * math.hypot(p[3], p[4])
+    last = samples - 1
+    total = 0.0
+    for i in range(count):
+        pixel = metres_per_px[i]
+        top = min(max(0.5 - _signed_distance(shape, p, cos, sin, on_top[i, 0], on_top[i, 1])
+                      / pixel, 0.0), 1.0)
+        if top >= 1.0:
+            total += top_cost[i]
+            continue
+        side, entered = 0.0, 0
+        x0, y0, x1, y1 = wall[i, 0], wall[i, 1], wall[i, 2], wall[i, 3]
+        if _segment_distance(x0, y0, x1, y1, p[0], p[1]) < reach + 0.5 * pixel:
+            t_in, t_out, nearest, nearest_at = _segment_in_shape(shape, p, cos, sin, x0, y0,
+                                                                 x1, y1)
+            entered = int(math.ceil(max(t_in, 0.0) * last)) if t_in < t_out else samples
+            if entered > last or entered >= t_out * last:
+                entered = int(round(nearest_at * last))  # never inside at a sampled height
+            side = (1.0 - top) * min(max(0.5 - nearest / pixel, 0.0), 1.0)
+        surface = 1.0 - top - side
+        hidden = 0.0
+        x0, y0, x1, y1 = view[i, 0], view[i, 1], view[i, 2], view[i, 3]
+        if surface > 0.0 and _segment_distance(x0, y0, x1, y1, p[0], p[1]) < reach + 0.5 * pixel:
+            nearest = _segment_in_shape(shape, p, cos, sin, x0, y0, x1, y1)[2]
+            hidden = min(max(0.5 - nearest / pixel, 0.0), 1.0)
+        total += (top * top_cost[i] + side * wall_cost[i, entered]
+                  + surface * ((1.0 - hidden) * surface_cost[i] + hidden * mismatch))
+    return total
+
+
+def top_shape_costs(area: CorrelationArea, left_image: RectifiedImage,
+                    right_image: RectifiedImage, left: CameraCalibration,
+                    right: CameraCalibration, world_from_camera: np.ndarray,
+                    guess: np.ndarray, axes: tuple[float, float, float],
+                    samples: int = SAMPLES) -> TopShapeCosts | None:
+    """Return the costs of the crop around the area for shapes near the guessed centre (x, y)
+    with the area's principal axes (angle, long side, short side), or None when the top barely
+    stands out in disparity, the crop leaves either image part or has too little table in it.
+
+    Only the pixels whose label a shape within BAND_M of the guessed ones can change are
+    scored shape by shape (the band); the others add a constant."""
+    pose = np.asarray(world_from_camera, dtype=float)
+    surface = area.surface
+    normal = surface.normal
+    surface_level = surface.offset_m * float(normal[2])
+    top_level = area.top_height + surface_level
+    height, width = left_image.pixels.shape[:2]
+    u_low = max(int(area.u_left.min()) - MARGIN_PX, left_image.x + 2)
+    v_low = max(int(area.v_left.min()) - MARGIN_PX, left_image.y + 1)
+    u_high = min(int(area.u_left.max()) + MARGIN_PX + 1, left_image.x + width - 2)
+    v_high = min(int(area.v_left.max()) + MARGIN_PX + 1, left_image.y + height - 1)
+    if u_high <= u_low or v_high <= v_low:
+        return None
+    columns, rows = (grid.ravel() for grid in np.meshgrid(
+        np.arange(u_low, u_high, dtype=float), np.arange(v_low, v_high, dtype=float)))
+    column_at = _plane_disparity(left, right, pose, surface)
+    on_top_right, on_surface_right = (column_at(columns, rows, area.top_height),
+                                      column_at(columns, rows, 0.0))
+    if not (np.all(np.isfinite(on_top_right)) and np.all(np.isfinite(on_surface_right))):
+        return None  # a ray parallel to the planes: the pose does not see them
+    if not (abs(float(np.median(on_top_right - on_surface_right))) >= MIN_PARALLAX_PX):
+        return None
+    right_height, right_width = right_image.pixels.shape[:2]
+    if rows.min() < right_image.y or rows.max() > right_image.y + right_height - 1:
+        return None
+    for right_columns in (on_top_right, on_surface_right):
+        if right_columns.min() < right_image.x + 1 or (
+                right_columns.max() > right_image.x + right_width - 2):
+            return None
+    right_pixels = right_image.pixels.astype(np.float32)
+    left_grey = left_image.pixels.astype(np.float32)[
+        (rows - left_image.y).astype(int), (columns - left_image.x).astype(int)]
+    chain = np.zeros((v_high - v_low, u_high - u_low), np.uint8)
+    chain[(np.rint(area.v_left) - v_low).astype(int).clip(0, chain.shape[0] - 1),
+          (np.rint(area.u_left) - u_low).astype(int).clip(0, chain.shape[1] - 1)] = 1
+    far = cv2.dilate(chain, np.ones((2 * FAR_PX + 1,) * 2, np.uint8)).ravel() == 0
+    if np.count_nonzero(far) < MIN_FAR_PIXELS:
+        return None
+    row_in_right = (rows - right_image.y).astype(np.int64)
+    surface_grey = _along_rows(right_pixels, on_surface_right - right_image.x, row_in_right)
+    gain, offset = np.linalg.lstsq(np.column_stack([left_grey[far], np.ones(np.count_nonzero(
+        far))]), surface_grey[far], rcond=None)[0]
+    unit = max(float(np.std(left_grey[far])) * abs(float(gain)), 1e-3)
+    expected = gain * left_grey + offset
+
+    def cost_at(heights_m: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+        """Return the costs (heights, pixels) of the pixels on planes at those heights."""
+        right_columns = column_at(columns[pixels][None, :], rows[pixels][None, :],
+                                  np.asarray(heights_m, dtype=float)[:, None])
+        grey = _along_rows(right_pixels, (right_columns - right_image.x).ravel(),
+                           np.broadcast_to(row_in_right[pixels], right_columns.shape).ravel())
+        cost: np.ndarray = np.minimum(np.abs(grey.reshape(right_columns.shape)
+                                             - expected[pixels]) / unit, CAP)
+        return cost
+
+    top_cost = cost_at(np.array([area.top_height]), np.arange(len(columns)))[0]
+    surface_cost = np.minimum(np.abs(surface_grey - expected) / unit, CAP)
+    mismatch = float(np.median(top_cost[far]))
+    rectification = np.asarray(left.R, dtype=float).reshape(3, 3)
+    intrinsic = np.asarray(left.P, dtype=float)[:3, :3]
+    rays = pose[:3, :3] @ rectification.T @ (np.linalg.inv(intrinsic) @ np.vstack(
+        [columns, rows, np.ones_like(columns)]))
+    centre = pose[:3, 3]
+    facing = normal @ rays
+    top_depth = (top_level - normal @ centre) / facing
+    surface_depth = (surface_level - normal @ centre) / facing
+    on_top = (centre[:, None] + rays * top_depth)[:2].T
+    on_surface = centre[:, None] + rays * surface_depth
+    focal = float(intrinsic[0, 0])
+    baseline = -float(np.asarray(right.P, dtype=float)[0, 3]) / focal
+    right_centre = centre + pose[:3, :3] @ rectification.T @ np.array([baseline, 0.0, 0.0])
+    metres_per_px = top_depth * np.linalg.norm(rays, axis=0) / focal
+    # where the surface point's view line to the right camera reaches the top's level
+    view_reach = (top_level - on_surface[2]) / (right_centre[2] - on_surface[2])
+    view_end = (on_surface[:2] + (right_centre[:2, None] - on_surface[:2]) * view_reach).T
+
+    angle, long_side, short_side = axes
+    band_m = BAND_M + 2.0 * float(np.median(metres_per_px))
+    radius = math.sqrt((long_side ** 2 + short_side ** 2) / 12.0)
+    outer = max(radius, 0.5 * math.hypot(long_side, short_side)) + band_m
+    inner = min(radius, 0.5 * short_side) - band_m - metres_per_px
+    guess = np.asarray(guess, dtype=float)
+    from_guess = np.hypot(*(on_top - guess).T)
+    inside = from_guess < inner
+    outside = (from_guess > outer) & (_segments_from(on_top, on_surface[:2].T, guess) > outer) & (
+        _segments_from(on_surface[:2].T, view_end, guess) > outer)
+    band = np.flatnonzero(~inside & ~outside)
+    # the wall's heights are sampled from a tenth of the top's height below it down to the
+    # surface; the view line from a twentieth of it above the surface up to the top's level
+    fractions = np.linspace(0.1, 1.0, samples)
+    wall_cost = cost_at(area.top_height * (1.0 - fractions), band)
+    top_xy, surface_xy = on_top[band], on_surface[:2, band].T
+    wall = np.hstack([top_xy + 0.1 * (surface_xy - top_xy), surface_xy])
+    view_start = surface_xy + 0.05 * (view_end[band] - surface_xy)
+    view = np.hstack([view_start, view_end[band]])
+    constant = float(np.sum(top_cost[inside]) + np.sum(surface_cost[outside]))
+    return TopShapeCosts(
+        np.ascontiguousarray(top_xy), np.ascontiguousarray(wall), np.ascontiguousarray(view),
+        np.ascontiguousarray(metres_per_px[band]),
+        np.ascontiguousarray(top_cost[band], dtype=np.float64),
+        np.ascontiguousarray(wall_cost.T, dtype=np.float64),
+        np.ascontiguousarray(surface_cost[band], dtype=np.float64), mismatch, constant,
+        len(columns))
+
+
+@numba.njit(cache=True, nogil=True)
+def _along_rows(pixels: np.ndarray, columns: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Return the grey levels at (column, row) of the image, linear along its rows (rectified
+    images share their rows), the nearest edge pixel beyond its sides."""
+    last = pixels.shape[1] - 1
+    result = np.empty(len(columns), dtype=np.float64)
+    for i in range(len(columns)):
+        column = min(max(columns[i], 0.0), float(last)) if columns[i] == columns[i] else 0.0
+        left = min(int(column), last - 1)
+        share = column - left
+        row = pixels[rows[i]]
+        result[i] = (1.0 - share) * row[left] + share * row[left + 1]
+    return result
+
+
+def _segments_from(starts: np.ndarray, ends: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """Return the distance of the point (2,) from each segment starts[i]-ends[i] (N, 2)."""
+    direction = ends - starts
+    length2 = np.maximum(np.sum(direction ** 2, axis=1), 1e-30)
+    t = np.clip(np.sum((point - starts) * direction, axis=1) / length2, 0.0, 1.0)
+    distance: np.ndarray = np.hypot(*(starts + t[:, None] * direction - point).T)
+    return distance
+
+
+def principal_axes(xy: np.ndarray) -> tuple[float, float, float]:
+    """Return the angle [rad] and the long and short sides [m] of the uniform rectangle with
+    the spread of the points xy (as object_segmentation.across_m)."""
+    variances, vectors = np.linalg.eigh(np.cov(np.asarray(xy, dtype=float).T))
+    return (math.atan2(vectors[1, 1], vectors[0, 1]), math.sqrt(12.0 * max(variances[1], 1e-10)),
+            math.sqrt(12.0 * max(variances[0], 1e-10)))
+
+
+def _minimise(costs: TopShapeCosts, shape: int, start: np.ndarray, scales: np.ndarray,
+              restarts: int) -> optimize.OptimizeResult:
+    """Return Nelder-Mead's minimum from `start`, started again where it stalled."""
+    result = None
+    for _ in range(restarts + 1):
+        origin = start if result is None else result.x
+        simplex = np.vstack([origin] + [origin + np.eye(len(origin))[i] * scales[i]
+                                        for i in range(len(origin))])
+        again = optimize.minimize(lambda p: costs.cost(shape, p), origin, method='Nelder-Mead',
+                                  options={'initial_simplex': simplex, 'xatol': 1e-5,
+                                           'fatol': 0.5, 'maxiter': 400})
+        if result is not None and again.fun >= result.fun - 0.5:
+            break  # Nelder-Mead's simplex collapses short of the minimum: restarted, it goes on
+        result = again
+    return result
+
+
+def fit_top_shape(costs: TopShapeCosts, guess: np.ndarray, axes: tuple[float, float, float],
+                  restarts: int = RESTARTS) -> TopShapeFit:
+    """Fit a disc and a rectangle from the guessed centre (x, y) and the area's principal axes
+    (angle, long side, short side); return the one of lower cost."""
+    angle, long_side, short_side = axes
+    step = 2.0 * float(np.median(costs.metres_per_px))
+    # the disc starts at the radius whose spread is the area's total
+    disc = np.array([*guess, math.sqrt((long_side ** 2 + short_side ** 2) / 12.0)])
+    starts = {DISC: (disc, np.array([step, step, step])),
+              RECTANGLE: (np.array([*guess, angle, long_side, short_side]),
+                          np.array([step, step, 0.15, step, step]))}
+    fits = {shape: _minimise(costs, shape, start, scales, restarts)
+            for shape, (start, scales) in starts.items()}
+    shape = min(fits, key=lambda name: fits[name].fun)
+    drop = (costs.cost(DISC, disc) - fits[shape].fun) / costs.pixels
+    return TopShapeFit(SHAPE_NAMES[shape], np.asarray(fits[shape].x[:2], dtype=float), drop)
+
+
+def fitted(area: CorrelationArea, points: MatchedPoints, left: CameraCalibration,
+           right: CameraCalibration, world_from_camera: np.ndarray, guess: np.ndarray,
+           samples: int = SAMPLES, restarts: int = RESTARTS) -> TopShapeFit | None:
+    """Return the top fitted around the guessed centre (x, y) [m] of the area's face, or None
+    when there is no face, the matches came without both images, the face is wider than
+    MAX_TOP_WIDTH_PX, or the crop cannot be scored (top_shape_costs)."""
+    if not area.ok or points.left_image is None or points.right_image is None or len(
+            area.xyz_world) < 3:
+        return None
+    if max(np.ptp(area.u_left), np.ptp(area.v_left)) > MAX_TOP_WIDTH_PX:
+        return None
+    axes = principal_axes(area.xyz_world[:, :2])
+    costs = top_shape_costs(area, points.left_image, points.right_image, left, right,
+                            world_from_camera, guess, axes, samples)
+    return None if costs is None else fit_top_shape(costs, guess, axes, restarts)
+
+
+def moved_toward_fit(point: np.ndarray, fit: TopShapeFit | None, weight: float = WEIGHT,
+                     max_move_m: float = MAX_MOVE_M, min_drop: float = MIN_DROP) -> np.ndarray:
+    """Return the point moved `weight` of the way to the fitted centre on the surface, when the
+    fit lies within max_move_m of it and lowered the cost by min_drop per pixel."""
+    point = np.array(point, dtype=float)
+    if fit is None or not (fit.drop_per_px >= min_drop) or not (
+            np.hypot(*(fit.centre - point[:2])) <= max_move_m):
+        return point
+    point[:2] = (1.0 - weight) * point[:2] + weight * fit.centre
+    return point
+
+
+@dataclass
+class TopShapeMemory:
+    """The last top fitted, given again for the pairs of the same object that follow.
+
+    A camera at 30 Hz sees a standing object for many pairs, and the fit costs far more than
+    a decision: fuzzy_best_point_node fits an object's top once, on its first pair, and moves
+    the points of the pairs after it toward the same fitted centre while their point stays
+    within SAME_OBJECT_M of the first one's and the camera pose stays. Benchmarks decide each
+    scene on its own and keep no memory.
+
+    Attributes:
+        point: The point (world) the remembered fit was made for, or None.
+        pose: The camera pose it was made with.
+        fit: The fit (None: the pair could not be fitted).
+        counts: Fits made, fits given again, points moved toward a fit.
+    """
+
+    point: np.ndarray | None = None
+    pose: np.ndarray | None = None
+    fit: TopShapeFit | None = None
+    counts: dict[str, int] = field(default_factory=lambda: dict(fitted=0, recalled=0, moved=0))
+
+    def recall(self, point: np.ndarray, pose: np.ndarray) -> tuple[bool, TopShapeFit | None]:
+        """Return (True, the fit) when one was made for the same object, else (False, None)."""
+        if self.point is None or self.pose is None or not np.array_equal(self.pose, pose) or not (
+                np.linalg.norm(np.asarray(point, dtype=float) - self.point) <= SAME_OBJECT_M):
+            return False, None
+        self.counts['recalled'] += 1
+        return True, self.fit
+
+    def remember(self, point: np.ndarray, pose: np.ndarray, fit: TopShapeFit | None) -> None:
+        """Keep the fit made for the point."""
+        self.point, self.pose, self.fit = (np.array(point, dtype=float),
+                                           np.array(pose, dtype=float), fit)
+        self.counts['fitted'] += 1
+
+
+def point_with_fitted_top(area: CorrelationArea, points: MatchedPoints,
+                          left: CameraCalibration, right: CameraCalibration,
+                          world_from_camera: np.ndarray, point: np.ndarray,
+                          memory: TopShapeMemory | None = None) -> np.ndarray:
+    """Return the decision's point moved toward the top fitted around it (moved_toward_fit),
+    the fit given again by the memory where it has one for the same object."""
+    known, fit = (memory.recall(point, world_from_camera) if memory is not None
+                  else (False, None))
+    if not known:
+        fit = fitted(area, points, left, right, world_from_camera, point[:2])
+        if memory is not None:
+            memory.remember(point, world_from_camera, fit)
+    moved = moved_toward_fit(point, fit)
+    if memory is not None and not np.array_equal(moved, point):
+        memory.counts['moved'] += 1
+    return moved
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) the kernels, so the first fit is not slowed."""
+    pixels = np.zeros((1, 2))
+    segments = np.array([[0.0, 0.0, 0.01, 0.0]])
+    ones = np.ones(1)
+    costs = TopShapeCosts(pixels, segments, segments, np.full(1, 0.001), ones, np.ones((1, 2)),
+                          ones, 1.0, 0.0, 1)
+    costs.cost(DISC, np.array([0.0, 0.0, 0.01]))
+    costs.cost(RECTANGLE, np.array([0.0, 0.0, 0.1, 0.02, 0.01]))
+    signed_distances(DISC, np.array([0.0, 0.0, 0.01]), pixels)
+    _along_rows(np.zeros((1, 2), dtype=np.float32), np.zeros(1), np.zeros(1, dtype=np.int64))

@@ -1,0 +1,168 @@
+"""The top face fitted as a disc or a rectangle to both images (top_shape_fit.py)."""
+
+import math
+from types import SimpleNamespace
+
+import cv2
+import numpy as np
+import pytest
+from grid_scenes import TILTED_RIG as RIG
+from grid_scenes import Box, plain_box_pair
+from stereo_fuzzy_perception.core.best_point import top_shape_fit
+from stereo_fuzzy_perception.core.best_point.top_shape_fit import (
+    DISC,
+    RECTANGLE,
+    TopShapeCosts,
+    TopShapeFit,
+    TopShapeMemory,
+    fit_top_shape,
+    moved_toward_fit,
+    principal_axes,
+    signed_distances,
+    top_shape_costs,
+)
+from stereo_fuzzy_perception.core.best_point.work_surface import SURFACE_MEASURED, SurfacePlane
+
+POSE = RIG.world_from_left_camera()
+TABLE = SurfacePlane(SURFACE_MEASURED, 0.0, 0.0, 0.0, 0.1, 1000)
+
+
+def test_a_disc_is_negative_inside_zero_on_its_rim_and_the_distance_outside():
+    disc = np.array([0.1, 0.2, 0.03])
+    points = np.array([[0.1, 0.2], [0.13, 0.2], [0.1, 0.25]])
+    assert signed_distances(DISC, disc, points) == pytest.approx([-0.03, 0.0, 0.02])
+
+
+def test_a_turned_rectangle_measures_along_its_own_sides():
+    # 40 x 20 mm, its long side along the diagonal
+    rectangle = np.array([0.0, 0.0, math.pi / 4, 0.04, 0.02])
+    along = np.array([math.cos(math.pi / 4), math.sin(math.pi / 4)])
+    across = np.array([-along[1], along[0]])
+    points = np.array([0.0 * along, 0.03 * along, 0.02 * across, 0.03 * along + 0.02 * across])
+    assert signed_distances(RECTANGLE, rectangle, points) == pytest.approx(
+        [-0.01, 0.01, 0.01, math.hypot(0.01, 0.01)])
+
+
+@pytest.mark.parametrize('shape, parameters', [
+    (DISC, np.array([0.01, -0.005, 0.012])),
+    (RECTANGLE, np.array([0.01, -0.005, 0.4, 0.03, 0.012])),
+    (RECTANGLE, np.array([0.0, 0.0, 0.0, 0.02, 0.02]))])
+def test_a_segment_runs_inside_and_comes_nearest_where_its_points_say(shape, parameters):
+    # the exact crossing and least distance against the segment's points, densely sampled
+    rng = np.random.default_rng(7)
+    cos, sin = math.cos(parameters[2]), math.sin(parameters[2])
+    t = np.linspace(0.0, 1.0, 4001)
+    for _ in range(300):
+        start, end = rng.uniform(-0.04, 0.05, 2), rng.uniform(-0.04, 0.05, 2)
+        if rng.random() < 0.2:  # axis-parallel segments: the slabs' degenerate case
+            end[rng.integers(2)] = start[rng.integers(2)]
+        t_in, t_out, nearest, nearest_at = top_shape_fit._segment_in_shape(
+            shape, parameters, cos, sin, *start, *end)
+        distances = signed_distances(shape, parameters, start + t[:, None] * (end - start))
+        assert nearest == pytest.approx(distances.min(), abs=2e-5)
+        assert 0.0 <= nearest_at <= 1.0
+        inside = distances < -1e-6
+        assert np.all((t[inside] > t_in - 1e-3) & (t[inside] < t_out + 1e-3))
+        clearly = distances < -1e-4
+        if clearly.any():
+            assert t_in < t_out
+
+
+def _pixel_grid(metres_per_px: float, side: int) -> np.ndarray:
+    columns, rows = np.meshgrid(np.arange(side), np.arange(side))
+    return np.column_stack([columns.ravel(), rows.ravel()]).astype(float) * metres_per_px
+
+
+def test_the_fit_finds_the_disc_whose_pixels_match_the_top_and_the_rest_the_surface():
+    metres_per_px = 0.001
+    on_top = _pixel_grid(metres_per_px, 60)
+    true_disc = np.array([0.031, 0.028, 0.012])
+    inside = signed_distances(DISC, true_disc, on_top) < 0.0
+    # no wall and nothing hidden from the right camera: the rays below the top and the view
+    # lines to the right camera all run far outside the disc
+    far = np.tile([1.0, 1.0, 1.01, 1.0], (len(on_top), 1))
+    costs = TopShapeCosts(on_top, far, far, np.full(len(on_top), metres_per_px),
+                          np.where(inside, 0.1, 1.2), np.ones((len(on_top), 2)),
+                          np.where(inside, 1.2, 0.1), 1.2, 0.0, len(on_top))
+    fit = fit_top_shape(costs, np.array([0.027, 0.031]), (0.0, 0.02, 0.02))
+    assert fit.shape == 'disc'
+    assert np.hypot(*(fit.centre - true_disc[:2])) < 0.5 * metres_per_px
+    assert fit.drop_per_px > 0.0
+
+
+def _area(box, outline, shape):
+    """What top_shape_costs reads of a correlation area: the pixels within the top's outline in
+    the left image (the box's square, round or not), the surface and the top's height."""
+    mask = np.zeros(shape, np.uint8)
+    cv2.fillPoly(mask, [np.round(outline).astype(np.int32)], 1)
+    v_left, u_left = np.nonzero(mask)
+    return SimpleNamespace(surface=TABLE, top_height=box.height, u_left=u_left.astype(float),
+                           v_left=v_left.astype(float))
+
+
+@pytest.mark.parametrize('box, top_texture', [(Box((0.21, 0.16), 0.04, 0.03), 0.0),
+                                              (Box((0.21, 0.16), 0.04, 0.03), 20.0),
+                                              (Box((0.19, 0.14), 0.045, 0.02, round=True), 0.0)])
+def test_a_ray_cast_top_is_found_from_a_guess_millimetres_off(box, top_texture):
+    # both images ray-cast: a plain or textured top on a textured table, its walls plain and
+    # darker; the area the chain would hand over is the top's outline in the left image, its
+    # centre 2-3 mm off
+    left_image, right_image, left, right, outline = plain_box_pair(
+        RIG, box, top_grey=200.0, right_gain=0.9, right_offset=12.0, top_texture=top_texture)
+    area = _area(box, outline, left_image.pixels.shape)
+    truth = np.array(box.centre_xy)
+    guess = truth + np.array([0.002, -0.0025])
+    axes = (0.1, 0.9 * box.size, 0.9 * box.size)
+    costs = top_shape_costs(area, left_image, right_image, left, right, POSE, guess, axes)
+    assert costs is not None
+    fit = fit_top_shape(costs, guess, axes)
+    assert fit.shape == ('disc' if box.round else 'rectangle')
+    assert np.hypot(*(fit.centre - truth)) < 0.5e-3
+    assert fit.drop_per_px >= top_shape_fit.MIN_DROP
+    moved = moved_toward_fit(np.array([*guess, box.height]), fit)
+    assert np.hypot(*(moved[:2] - truth)) < 0.4 * np.hypot(*(guess - truth))
+
+
+def test_a_top_standing_too_little_out_in_disparity_is_not_scored():
+    box = Box((0.21, 0.16), 0.04, 0.001)
+    left_image, right_image, left, right, outline = plain_box_pair(RIG, box, top_grey=200.0)
+    area = _area(box, outline, left_image.pixels.shape)
+    assert top_shape_costs(area, left_image, right_image, left, right, POSE,
+                           np.array(box.centre_xy), (0.0, 0.04, 0.04)) is None
+
+
+def test_the_point_moves_part_way_only_for_a_near_and_clear_fit():
+    chain = np.array([0.1, 0.1, 0.05])
+    near = TopShapeFit('disc', np.array([0.102, 0.1]), drop_per_px=0.05)
+    assert moved_toward_fit(chain, near, 0.5, 0.005, 0.02) == pytest.approx([0.101, 0.1, 0.05])
+    far = TopShapeFit('disc', np.array([0.11, 0.1]), drop_per_px=0.05)
+    unclear = TopShapeFit('disc', np.array([0.102, 0.1]), drop_per_px=0.01)
+    failed = TopShapeFit('disc', np.array([np.nan, np.nan]), drop_per_px=np.nan)
+    for fit in (far, unclear, failed, None):
+        assert moved_toward_fit(chain, fit, 0.5, 0.005, 0.02) == pytest.approx(chain)
+
+
+def test_the_memory_gives_a_fit_again_for_the_same_object_and_pose_only():
+    memory = TopShapeMemory()
+    fit = TopShapeFit('disc', np.array([0.1, 0.1]), 0.05)
+    point = np.array([0.1, 0.1, 0.03])
+    assert memory.recall(point, POSE) == (False, None)
+    memory.remember(point, POSE, fit)
+    assert memory.recall(point + [0.001, -0.001, 0.0005], POSE) == (True, fit)
+    assert memory.recall(point + [0.01, 0.0, 0.0], POSE) == (False, None)
+    moved_pose = POSE.copy()
+    moved_pose[0, 3] += 0.01
+    assert memory.recall(point, moved_pose) == (False, None)
+    assert memory.counts == dict(fitted=1, recalled=1, moved=0)
+
+
+def test_the_principal_axes_of_a_uniform_strip_are_its_sides_and_direction():
+    rng = np.random.default_rng(3)
+    along, across = rng.uniform(-0.02, 0.02, 20000), rng.uniform(-0.005, 0.005, 20000)
+    angle = 0.3
+    xy = np.column_stack([along * math.cos(angle) - across * math.sin(angle),
+                          along * math.sin(angle) + across * math.cos(angle)])
+    found_angle, long_side, short_side = principal_axes(xy)
+    assert long_side == pytest.approx(0.04, rel=0.02)
+    assert short_side == pytest.approx(0.01, rel=0.02)
+    assert math.sin(2 * (found_angle - angle)) == pytest.approx(0.0, abs=0.02)
