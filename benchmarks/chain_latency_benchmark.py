@@ -19,7 +19,9 @@ whole image), --no-scene-change-detection its comparison of block means before m
 published without a decision before it matches the next pair (0: never waits),
 --decision-wait-s sets how long the pair after a failed region waits for that pair's decision
 (roi.decision_wait_s; 0 = matched on the whole image at once);
-where pairs were matched is reported from its /diagnostics.
+where pairs were matched is reported from its /diagnostics. --no-top-shape-fit turns
+fuzzy_best_point_node's fit of the top to both images off (fit_top_shape false: it costs a
+tenth of a second on an object's first pair).
 
 Latency = arrival time in this process - pair header stamp (both CLOCK_REALTIME). A decision
 (best_point/decision) is published for every pair the correlation node processes; a best point
@@ -532,7 +534,8 @@ def print_tables(results: list[Measurement], params: str, machine: str) -> None:
 def node_arguments(executable: str, tracking: bool = True,
                    decision_wait_s: float | None = None,
                    scene_change: bool = True,
-                   max_undecided_matches: int | None = None) -> list[str]:
+                   max_undecided_matches: int | None = None,
+                   top_shape_fit: bool = True) -> list[str]:
     """Return the --ros-args of a node: the demo parameter file, or the fallback overrides."""
     overrides: tuple[str, ...] = LIVE_OVERRIDES.get(executable, ())
     if executable == 'correlation_node' and not tracking:
@@ -543,6 +546,8 @@ def node_arguments(executable: str, tracking: bool = True,
         overrides = (*overrides, f'roi.decision_wait_s:={decision_wait_s!r}')
     if executable == 'correlation_node' and max_undecided_matches is not None:
         overrides = (*overrides, f'max_undecided_matches:={max_undecided_matches}')
+    if executable == 'fuzzy_best_point_node' and not top_shape_fit:
+        overrides = (*overrides, 'fit_top_shape:=false')
     if DEMO_PARAMS.exists():
         files = ['--params-file', str(DEMO_PARAMS)]
     else:
@@ -572,7 +577,8 @@ def run(args: argparse.Namespace) -> list[Measurement]:
                                  *node_arguments(executable, not args.no_tracking,
                                                  args.decision_wait_s,
                                                  not args.no_scene_change_detection,
-                                                 args.max_undecided_matches))
+                                                 args.max_undecided_matches,
+                                                 not args.no_top_shape_fit))
             wait_for(lambda: publisher.matched() and monitor.matched(), 60.0,
                      "the chain's subscriptions and publishers to match", monitor.spin, group)
             progress('publishing until the first decision (kernels warm)')
@@ -619,6 +625,8 @@ def main() -> None:
     parser.add_argument('--max-undecided-matches', type=int, metavar='N',
                         help="correlation_node's max_undecided_matches (default: the node's; "
                         '0 = never wait for decisions)')
+    parser.add_argument('--no-top-shape-fit', action='store_true',
+                        help="turn fuzzy_best_point_node's fit_top_shape off")
     parser.add_argument('--no-breakdown', action='store_true',
                         help="do not subscribe the nodes' per-pair timing topics, so they "
                         'measure and send nothing extra')
@@ -645,6 +653,8 @@ def main() -> None:
         params += ', roi.detect_scene_change false'
     if args.max_undecided_matches is not None:
         params += f', max_undecided_matches {args.max_undecided_matches}'
+    if args.no_top_shape_fit:
+        params += ', fit_top_shape false'
     print_tables(results, params, machine)
     if args.latencies:
         with open(args.latencies, 'w', encoding='utf-8') as output:

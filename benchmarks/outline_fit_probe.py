@@ -62,9 +62,17 @@ def main() -> None:
                         help='heights sampled down the side wall and to the right camera')
     parser.add_argument('--band-mm', type=float, default=1000.0 * top_shape_fit.BAND_M,
                         help='how far beyond the guessed shapes pixels are scored')
+    parser.add_argument('--simplex-mm', type=float,
+                        default=1000.0 * top_shape_fit.SIMPLEX_SIZE_M,
+                        help="Nelder-Mead's simplex size at which it stops")
+    parser.add_argument('--full-resolution-px', type=int,
+                        default=top_shape_fit.FULL_RESOLUTION_PX,
+                        help='faces wider than this are scored on every second, third... pixel')
     parser.add_argument('--save', metavar='FILE', help="write each scene's points (JSON)")
     args = parser.parse_args()
     top_shape_fit.BAND_M = args.band_mm / 1000.0
+    top_shape_fit.SIMPLEX_SIZE_M = args.simplex_mm / 1000.0
+    top_shape_fit.FULL_RESOLUTION_PX = args.full_resolution_px
     # the chain's point before the fit: the probe applies the rules itself
     chooser = BestPointChooser.create('fuzzy_fitted', replace(AreaConfig(), fit_top_shape=False),
                                       StereoRig())
@@ -82,14 +90,15 @@ def main() -> None:
         started = time.perf_counter()
         fit = top_shape_fit.fitted(area, scene.points, scene.left, scene.right, pose,
                                    chain[:2], max(2, args.samples), args.restarts)
+        took = time.perf_counter() - started
         if fit is not None:
-            seconds.append(time.perf_counter() - started)
+            seconds.append(took)
         target = np.asarray(scene.target_world, dtype=float)
         rows.append((label, chain, fit, target))
         fitted = (f', fitted {fit.shape} {1000.0 * np.linalg.norm(fit.centre - target[:2]):5.1f}'
                   f' mm on the surface, drop {fit.drop_per_px:.3f}' if fit else ', not fitted')
-        print(f'{label}: chain {1000.0 * np.linalg.norm(chain - target):5.1f} mm{fitted}',
-              flush=True)
+        print(f'{label}: chain {1000.0 * np.linalg.norm(chain - target):5.1f} mm{fitted} '
+              f'({1000.0 * took:.0f} ms)', flush=True)
     print(f'{len(rows)} decided {args.split} scenes at stride {args.point_stride}, '
           f'{len(seconds)} fitted: within 3 mm / over '
           f'10 mm (the fit took {1000.0 * np.median(seconds):.0f} ms median, '

@@ -68,8 +68,13 @@ down to the surface; a wall pixel costs what it does at the first of them below 
 enters the object (10 quantise a tall wall's disparity too coarsely: the fit then prefers
 wrong shapes)."""
 
-RESTARTS = 3
-"""Nelder-Mead is started again where its simplex stalled, up to this often."""
+RESTARTS = 1
+"""Nelder-Mead is started again where its simplex stalled, up to this often (more restarts
+and a smaller simplex at the end cost twice the time for the same points on the tuning
+splits)."""
+
+SIMPLEX_SIZE_M = 1e-4
+"""Nelder-Mead stops when its simplex is this small (and its costs within half a unit)."""
 
 BAND_M = 0.005
 """Shapes are scored on the pixels whose label a shape reaching this much further out or in
@@ -89,6 +94,11 @@ SAME_OBJECT_M = 0.004
 """A TopShapeMemory gives its fit again for a point this close to the one it was made for
 (the fitted centre is still taken only within MAX_MOVE_M of the new point)."""
 
+FULL_RESOLUTION_PX = 50
+"""A face up to this wide or tall in the left image is scored on every pixel of its crop; a
+wider one on every second (up to twice this), third...: the fit's cost grows with the crop,
+and a wide face has pixels to spare."""
+
 MAX_TOP_WIDTH_PX = 100
 """A face wider or taller than this in the left image is not fitted: the fit's cost grows
 with the crop, and the points it brought within 3 mm on the tuning splits were on narrower
@@ -107,7 +117,7 @@ class TopShapeCosts:
     # to the surface, where it may enter the side wall
     view: np.ndarray  # (N, 4) the surface point's view line to the right camera, up to the
     # top's level: the object hides the point where it crosses the shape
-    metres_per_px: np.ndarray  # (N,) on the top's plane
+    metres_per_px: np.ndarray  # (N,) between the scored pixels, on the top's plane
     top_cost: np.ndarray  # (N,)
     wall_cost: np.ndarray  # (N, S) at each sampled wall height
     surface_cost: np.ndarray  # (N,)
@@ -314,8 +324,11 @@ def top_shape_costs(area: CorrelationArea, left_image: RectifiedImage,
     v_high = min(int(area.v_left.max()) + MARGIN_PX + 1, left_image.y + height - 1)
     if u_high <= u_low or v_high <= v_low:
         return None
+    # a face wider than FULL_RESOLUTION_PX is scored on every step-th pixel of the crop
+    step = max(1, math.ceil(max(np.ptp(area.u_left), np.ptp(area.v_left))
+                            / FULL_RESOLUTION_PX))
     columns, rows = (grid.ravel() for grid in np.meshgrid(
-        np.arange(u_low, u_high, dtype=float), np.arange(v_low, v_high, dtype=float)))
+        np.arange(u_low, u_high, step, dtype=float), np.arange(v_low, v_high, step, dtype=float)))
     column_at = _plane_disparity(left, right, pose, surface)
     on_top_right, on_surface_right = (column_at(columns, rows, area.top_height),
                                       column_at(columns, rows, 0.0))
@@ -333,11 +346,12 @@ def top_shape_costs(area: CorrelationArea, left_image: RectifiedImage,
     right_pixels = right_image.pixels.astype(np.float32)
     left_grey = left_image.pixels.astype(np.float32)[
         (rows - left_image.y).astype(int), (columns - left_image.x).astype(int)]
-    chain = np.zeros((v_high - v_low, u_high - u_low), np.uint8)
-    chain[(np.rint(area.v_left) - v_low).astype(int).clip(0, chain.shape[0] - 1),
-          (np.rint(area.u_left) - u_low).astype(int).clip(0, chain.shape[1] - 1)] = 1
-    far = cv2.dilate(chain, np.ones((2 * FAR_PX + 1,) * 2, np.uint8)).ravel() == 0
-    if np.count_nonzero(far) < MIN_FAR_PIXELS:
+    chain = np.zeros((len(np.unique(rows)), len(np.unique(columns))), np.uint8)
+    chain[((np.rint(area.v_left) - v_low) // step).astype(int).clip(0, chain.shape[0] - 1),
+          ((np.rint(area.u_left) - u_low) // step).astype(int).clip(0, chain.shape[1] - 1)] = 1
+    reach = math.ceil(FAR_PX / step)
+    far = cv2.dilate(chain, np.ones((2 * reach + 1,) * 2, np.uint8)).ravel() == 0
+    if np.count_nonzero(far) * step ** 2 < MIN_FAR_PIXELS:
         return None
     row_in_right = (rows - right_image.y).astype(np.int64)
     surface_grey = _along_rows(right_pixels, on_surface_right - right_image.x, row_in_right)
@@ -372,7 +386,8 @@ def top_shape_costs(area: CorrelationArea, left_image: RectifiedImage,
     focal = float(intrinsic[0, 0])
     baseline = -float(np.asarray(right.P, dtype=float)[0, 3]) / focal
     right_centre = centre + pose[:3, :3] @ rectification.T @ np.array([baseline, 0.0, 0.0])
-    metres_per_px = top_depth * np.linalg.norm(rays, axis=0) / focal
+    # between the samples: the labels are soft across one of them
+    metres_per_px = step * top_depth * np.linalg.norm(rays, axis=0) / focal
     # where the surface point's view line to the right camera reaches the top's level
     view_reach = (top_level - on_surface[2]) / (right_centre[2] - on_surface[2])
     view_end = (on_surface[:2] + (right_centre[:2, None] - on_surface[:2]) * view_reach).T
@@ -447,7 +462,7 @@ def _minimise(costs: TopShapeCosts, shape: int, start: np.ndarray, scales: np.nd
         simplex = np.vstack([origin] + [origin + np.eye(len(origin))[i] * scales[i]
                                         for i in range(len(origin))])
         again = optimize.minimize(lambda p: costs.cost(shape, p), origin, method='Nelder-Mead',
-                                  options={'initial_simplex': simplex, 'xatol': 1e-5,
+                                  options={'initial_simplex': simplex, 'xatol': SIMPLEX_SIZE_M,
                                            'fatol': 0.5, 'maxiter': 400})
         if result is not None and again.fun >= result.fun - 0.5:
             break  # Nelder-Mead's simplex collapses short of the minimum: restarted, it goes on
