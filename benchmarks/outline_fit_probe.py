@@ -4,15 +4,17 @@
 The model and the fit are the chain's own (stereo_fuzzy_perception.core.best_point.
 top_shape_fit; its docstring gives the model). This probe fits every decided scene of a tuning
 split and prints what several rules for taking the fitted centre would give (weight of the
-fit, furthest move, least drop of the cost per pixel) beside the chain's point as the fit
-leaves it out, and how long the fit took (costs and Nelder-Mead) per scene. It is how the rule
-in top_shape_fit (WEIGHT, MAX_MOVE_M, MIN_DROP) was chosen: on the train and validation
-splits, never on the evaluation split.
+fit, furthest move, least drop of the cost per pixel) beside the chain's point before the
+fit, and how long the fit took (costs and Nelder-Mead) per scene. It is how the rule in
+top_shape_fit (WEIGHT, MAX_MOVE_M, MIN_DROP) and its cost settings were chosen: on the train
+and validation splits, never on the evaluation split. The matched scenes come from
+rig_tuning.py's cache (--cache; made by its first run on a split).
 
     source scripts/env.sh
     nice python benchmarks/outline_fit_probe.py --split train --save /tmp/fit_train.json
-    nice python benchmarks/outline_fit_probe.py --split validation
-    nice python benchmarks/outline_fit_probe.py --samples 10 --restarts 0   # coarser, faster
+    nice python benchmarks/outline_fit_probe.py --split validation --point-stride 3
+    nice python benchmarks/outline_fit_probe.py --oversampling 3   # the antialiased renders
+    nice python benchmarks/outline_fit_probe.py --restarts 3 --simplex-mm 0.01   # slower
 """
 
 from __future__ import annotations
