@@ -67,6 +67,9 @@ def main() -> None:
     parser.add_argument('--simplex-mm', type=float,
                         default=1000.0 * top_shape_fit.SIMPLEX_SIZE_M,
                         help="Nelder-Mead's simplex size at which it stops")
+    parser.add_argument('--min-parallax-px', type=float, default=top_shape_fit.MIN_PARALLAX_PX,
+                        help="tops standing less than this out of the surface's disparity are "
+                        'not fitted')
     parser.add_argument('--full-resolution-px', type=int,
                         default=top_shape_fit.FULL_RESOLUTION_PX,
                         help='faces wider than this are scored on every second, third... pixel')
@@ -75,6 +78,7 @@ def main() -> None:
     top_shape_fit.BAND_M = args.band_mm / 1000.0
     top_shape_fit.SIMPLEX_SIZE_M = args.simplex_mm / 1000.0
     top_shape_fit.FULL_RESOLUTION_PX = args.full_resolution_px
+    top_shape_fit.MIN_PARALLAX_PX = args.min_parallax_px
     # the chain's point before the fit: the probe applies the rules itself
     chooser = BestPointChooser.create('fuzzy_fitted', replace(AreaConfig(), fit_top_shape=False),
                                       StereoRig())
