@@ -20,8 +20,8 @@ published without a decision before it matches the next pair (0: never waits),
 --decision-wait-s sets how long the pair after a failed region waits for that pair's decision
 (roi.decision_wait_s; 0 = matched on the whole image at once);
 where pairs were matched is reported from its /diagnostics. --no-top-shape-fit turns
-fuzzy_best_point_node's fit of the top to both images off (fit_top_shape false: it costs a
-tenth of a second on an object's first pair).
+fuzzy_best_point_node's fit of the top to both images off (fit_top_shape false: the fit
+delays the first pairs of each object).
 
 Latency = arrival time in this process - pair header stamp (both CLOCK_REALTIME). A decision
 (best_point/decision) is published for every pair the correlation node processes; a best point

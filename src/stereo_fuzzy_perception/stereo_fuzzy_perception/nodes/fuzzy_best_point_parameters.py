@@ -107,8 +107,8 @@ class FuzzyBestPointSettings:
         'pixel by pixel (top_shape_fit.py: no correlation window straddles its rim) and move the '
         'best point 0.7 of the way to the fitted centre where it lies within 5 mm and the fit '
         'lowered its cost clearly. Fitted once per object: the pairs that follow with a point '
-        'within 4 mm of the first reuse the fit. Costs up to about a tenth of a second on the '
-        'first pair of each object')
+        'within 4 mm of the first reuse the fit, so only the first pair of each object waits '
+        "for it (its cost: the main README's benchmark table)")
     second_look_stride_one: bool = parameter(
         True, 'When matches of a point_stride above 1 find the object but refuse its top face '
         'as too thin (too_few_points, uncertain_top), match the pair again at point stride 1 '

@@ -374,6 +374,18 @@ def filled_on_grid(outline: np.ndarray, step: float, u_grid: float, v_grid: floa
     return columns[on_grid].astype(float), rows[on_grid].astype(float)
 
 
+def world_rays(columns: np.ndarray, rows: np.ndarray, left: CameraCalibration,
+               world_from_camera: np.ndarray) -> np.ndarray:
+    """Return the rays (3, M) in `world` of the left rectified image's pixels, K^-1 (u, v, 1)
+    turned out of the rectified frame: depth 1 along the rectified optical axis."""
+    pose = np.asarray(world_from_camera, dtype=float)
+    rectification = np.asarray(left.R, dtype=float).reshape(3, 3)
+    intrinsic = np.asarray(left.P, dtype=float)[:3, :3]
+    rays: np.ndarray = pose[:3, :3] @ rectification.T @ (np.linalg.inv(intrinsic) @ np.vstack(
+        [columns, rows, np.ones_like(rows)]))
+    return rays
+
+
 def on_top_plane(area: CorrelationArea, columns: np.ndarray, rows: np.ndarray,
                   left: CameraCalibration, right: CameraCalibration,
                   world_from_camera: np.ndarray) -> CorrelationArea | None:
@@ -384,10 +396,7 @@ def on_top_plane(area: CorrelationArea, columns: np.ndarray, rows: np.ndarray,
     sees is proportional to 1 / |n . D|^3 (central projection onto a plane), its weight.
     """
     pose = np.asarray(world_from_camera, dtype=float)
-    rectification = np.asarray(left.R, dtype=float).reshape(3, 3)
-    intrinsic = np.asarray(left.P, dtype=float)[:3, :3]
-    rays_rectified = np.linalg.inv(intrinsic) @ np.vstack([columns, rows, np.ones_like(rows)])
-    rays = pose[:3, :3] @ rectification.T @ rays_rectified  # (3, M) in world
+    rays = world_rays(columns, rows, left, pose)
     surface = area.surface
     normal = surface.normal
     level = area.top_height + surface.offset_m * float(normal[2])

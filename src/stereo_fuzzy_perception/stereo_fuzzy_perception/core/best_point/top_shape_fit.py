@@ -40,6 +40,7 @@ import numpy as np
 from scipy import optimize
 
 from stereo_fuzzy_perception.core.best_point.correlation_area import CorrelationArea
+from stereo_fuzzy_perception.core.best_point.face_outline import world_rays
 from stereo_fuzzy_perception.core.best_point.plain_top_height import _plane_disparity
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
@@ -70,8 +71,8 @@ wrong shapes)."""
 
 RESTARTS = 1
 """Nelder-Mead is started again where its simplex stalled, up to this often (more restarts
-and a smaller simplex at the end cost twice the time for the same points on the tuning
-splits)."""
+and a smaller simplex at the end gave the same points on the tuning splits, at a higher
+cost: benchmarks/EXPERIMENTS.md, nineteenth session)."""
 
 SIMPLEX_SIZE_M = 1e-4
 """Nelder-Mead stops when its simplex is this small (and its costs within half a unit)."""
@@ -373,18 +374,18 @@ def top_shape_costs(area: CorrelationArea, left_image: RectifiedImage,
     top_cost = cost_at(np.array([area.top_height]), np.arange(len(columns)))[0]
     surface_cost = np.minimum(np.abs(surface_grey - expected) / unit, CAP)
     mismatch = float(np.median(top_cost[far]))
-    rectification = np.asarray(left.R, dtype=float).reshape(3, 3)
-    intrinsic = np.asarray(left.P, dtype=float)[:3, :3]
-    rays = pose[:3, :3] @ rectification.T @ (np.linalg.inv(intrinsic) @ np.vstack(
-        [columns, rows, np.ones_like(columns)]))
+    rays = world_rays(columns, rows, left, pose)
     centre = pose[:3, 3]
     facing = normal @ rays
     top_depth = (top_level - normal @ centre) / facing
     surface_depth = (surface_level - normal @ centre) / facing
+    if not (np.all(top_depth > 0.0) and np.all(surface_depth > 0.0)):
+        return None  # a plane behind the camera for some pixel: no view of the object
     on_top = (centre[:, None] + rays * top_depth)[:2].T
     on_surface = centre[:, None] + rays * surface_depth
-    focal = float(intrinsic[0, 0])
+    focal = float(np.asarray(left.P, dtype=float)[0, 0])
     baseline = -float(np.asarray(right.P, dtype=float)[0, 3]) / focal
+    rectification = np.asarray(left.R, dtype=float).reshape(3, 3)
     right_centre = centre + pose[:3, :3] @ rectification.T @ np.array([baseline, 0.0, 0.0])
     # between the samples: the labels are soft across one of them
     metres_per_px = step * top_depth * np.linalg.norm(rays, axis=0) / focal
