@@ -32,6 +32,7 @@ away. benchmarks/outline_fit_probe.py measures the rule's variants on the tuning
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import cv2
@@ -104,6 +105,10 @@ MAX_TOP_WIDTH_PX = 100
 """A face wider or taller than this in the left image is not fitted: the fit's cost grows
 with the crop, and the points it brought within 3 mm on the tuning splits were on narrower
 faces (benchmarks/EXPERIMENTS.md, nineteenth session)."""
+
+
+_DISC_FITTER = ThreadPoolExecutor(max_workers=1, thread_name_prefix='top_shape_fit')
+"""Fits the disc while the calling thread fits the rectangle (fit_top_shape)."""
 
 
 @dataclass(frozen=True)
@@ -228,25 +233,31 @@ def _segment_in_shape(shape: int, p: np.ndarray, cos: float, sin: float, x0: flo
     hx, hy = p[3] / 2.0, p[4] / 2.0
     low_x, high_x = _slab(sx, ex, hx)
     low_y, high_y = _slab(sy, ey, hy)
+    t_in, t_out = max(low_x, low_y), min(high_x, high_y)
     best = _box_nearest(0.0, sx, sy, ex, ey, hx, hy, 1e30, 0.0)
     best = _box_nearest(1.0, sx, sy, ex, ey, hx, hy, *best)
     for t in (low_x, high_x, low_y, high_y):
         best = _box_nearest(t, sx, sy, ex, ey, hx, hy, *best)
-    length2 = ex * ex + ey * ey
-    if length2 > 0.0:
-        for corner_x, corner_y in ((hx, hy), (hx, -hy), (-hx, hy), (-hx, -hy)):
-            best = _box_nearest(((corner_x - sx) * ex + (corner_y - sy) * ey) / length2,
-                                sx, sy, ex, ey, hx, hy, *best)
-    for along, start in ((ex, sx), (ey, sy)):  # the axes, where |x| or |y| turns
-        if abs(along) > 1e-15:
-            best = _box_nearest(-start / along, sx, sy, ex, ey, hx, hy, *best)
-    gap = hx - hy
-    for along, start in ((ex - ey, sx - sy), (ex + ey, sx + sy)):
-        if abs(along) > 1e-15:
-            best = _box_nearest((gap - start) / along, sx, sy, ex, ey, hx, hy, *best)
-            best = _box_nearest((-gap - start) / along, sx, sy, ex, ey, hx, hy, *best)
+    if max(t_in, 0.0) < min(t_out, 1.0):
+        # inside, the distance is max(|x| - hx, |y| - hy): its pieces meet on the axes and
+        # the diagonals; the corners' feet, outside, cannot be nearer
+        for along, start in ((ex, sx), (ey, sy)):  # the axes, where |x| or |y| turns
+            if abs(along) > 1e-15:
+                best = _box_nearest(-start / along, sx, sy, ex, ey, hx, hy, *best)
+        gap = hx - hy
+        for along, start in ((ex - ey, sx - sy), (ex + ey, sx + sy)):
+            if abs(along) > 1e-15:
+                best = _box_nearest((gap - start) / along, sx, sy, ex, ey, hx, hy, *best)
+                best = _box_nearest((-gap - start) / along, sx, sy, ex, ey, hx, hy, *best)
+    else:
+        # outside, the distance to a side is linear and to a corner least at the corner's foot
+        length2 = ex * ex + ey * ey
+        if length2 > 0.0:
+            for corner_x, corner_y in ((hx, hy), (hx, -hy), (-hx, hy), (-hx, -hy)):
+                best = _box_nearest(((corner_x - sx) * ex + (corner_y - sy) * ey) / length2,
+                                    sx, sy, ex, ey, hx, hy, *best)
     nearest, nearest_at = best
-    return max(low_x, low_y), min(high_x, high_y), nearest, nearest_at
+    return t_in, t_out, nearest, nearest_at
 
 
 @numba.njit(cache=True, nogil=True)
@@ -260,14 +271,32 @@ def signed_distances(shape: int, p: np.ndarray, xy: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True)
+def _apart_at_least(shape: int, p: np.ndarray, cos: float, sin: float, reach: float,
+                    x0: float, y0: float, x1: float, y1: float) -> float:
+    """Return a lower bound [m] of the distance between the segment (x0, y0)-(x1, y1) and the
+    shape: how far it passes beyond the shape's bounding circle (radius `reach`) and, for a
+    rectangle, how far the segment's box in the rectangle's own axes lies from it."""
+    apart = _segment_distance(x0, y0, x1, y1, p[0], p[1]) - reach
+    if shape == DISC:
+        return apart
+    ax, ay, bx, by = x0 - p[0], y0 - p[1], x1 - p[0], y1 - p[1]
+    sx0, sy0 = cos * ax + sin * ay, -sin * ax + cos * ay
+    sx1, sy1 = cos * bx + sin * by, -sin * bx + cos * by
+    hx, hy = p[3] / 2.0, p[4] / 2.0
+    gap_x = max(min(sx0, sx1) - hx, -hx - max(sx0, sx1), 0.0)
+    gap_y = max(min(sy0, sy1) - hy, -hy - max(sy0, sy1), 0.0)
+    return max(apart, math.sqrt(gap_x * gap_x + gap_y * gap_y))
+
+
+@numba.njit(cache=True, nogil=True)
 def _total_cost(shape: int, p: np.ndarray, on_top: np.ndarray, wall: np.ndarray,
                 view: np.ndarray, metres_per_px: np.ndarray, top_cost: np.ndarray,
                 wall_cost: np.ndarray, surface_cost: np.ndarray, mismatch: float) -> float:
     """Return the summed cost of the pixels labelled by the shape (TopShapeCosts.cost).
 
     A pixel's wall cost is the one of the first sampled height inside the object, as if the
-    ray were walked down in steps. A segment that passes further from the shape's centre
-    than its bounding radius (and half a pixel) cannot enter it and is not looked at."""
+    ray were walked down in steps. A segment that passes further than half a pixel from the
+    shape (_apart_at_least) labels nothing and is not looked at."""
     count, samples = wall.shape[0], wall_cost.shape[1]
     if shape == DISC:
         cos, sin, reach = 1.0, 0.0, p[2]
@@ -284,7 +313,7 @@ def _total_cost(shape: int, p: np.ndarray, on_top: np.ndarray, wall: np.ndarray,
             continue
         side, entered = 0.0, 0
         x0, y0, x1, y1 = wall[i, 0], wall[i, 1], wall[i, 2], wall[i, 3]
-        if _segment_distance(x0, y0, x1, y1, p[0], p[1]) < reach + 0.5 * pixel:
+        if _apart_at_least(shape, p, cos, sin, reach, x0, y0, x1, y1) < 0.5 * pixel:
             t_in, t_out, nearest, nearest_at = _segment_in_shape(shape, p, cos, sin, x0, y0,
                                                                  x1, y1)
             entered = int(math.ceil(max(t_in, 0.0) * last)) if t_in < t_out else samples
@@ -294,7 +323,8 @@ def _total_cost(shape: int, p: np.ndarray, on_top: np.ndarray, wall: np.ndarray,
         surface = 1.0 - top - side
         hidden = 0.0
         x0, y0, x1, y1 = view[i, 0], view[i, 1], view[i, 2], view[i, 3]
-        if surface > 0.0 and _segment_distance(x0, y0, x1, y1, p[0], p[1]) < reach + 0.5 * pixel:
+        if surface > 0.0 and _apart_at_least(shape, p, cos, sin, reach, x0, y0, x1,
+                                             y1) < 0.5 * pixel:
             nearest = _segment_in_shape(shape, p, cos, sin, x0, y0, x1, y1)[2]
             hidden = min(max(0.5 - nearest / pixel, 0.0), 1.0)
         total += (top * top_cost[i] + side * wall_cost[i, entered]
@@ -482,9 +512,11 @@ def fit_top_shape(costs: TopShapeCosts, guess: np.ndarray, axes: tuple[float, fl
     starts = {DISC: (disc, np.array([step, step, step])),
               RECTANGLE: (np.array([*guess, angle, long_side, short_side]),
                           np.array([step, step, 0.15, step, step]))}
-    fits = {shape: _minimise(costs, shape, start, scales, restarts)
-            for shape, (start, scales) in starts.items()}
-    shape = min(fits, key=lambda name: fits[name].fun)
+    # the disc's fit runs beside the rectangle's: the kernel releases the GIL
+    disc_fit = _DISC_FITTER.submit(_minimise, costs, DISC, *starts[DISC], restarts)
+    fits = {RECTANGLE: _minimise(costs, RECTANGLE, *starts[RECTANGLE], restarts),
+            DISC: disc_fit.result()}
+    shape = min((DISC, RECTANGLE), key=lambda name: fits[name].fun)
     drop = (costs.cost(DISC, disc) - fits[shape].fun) / costs.pixels
     return TopShapeFit(SHAPE_NAMES[shape], np.asarray(fits[shape].x[:2], dtype=float), drop)
 
