@@ -1,6 +1,7 @@
 """The top face fitted as a disc or a rectangle to both images (top_shape_fit.py)."""
 
 import math
+import multiprocessing
 from types import SimpleNamespace
 
 import cv2
@@ -114,6 +115,38 @@ def test_the_fit_finds_the_disc_whose_pixels_match_the_top_and_the_rest_the_surf
     assert fit.shape == 'disc'
     assert np.hypot(*(fit.centre - true_disc[:2])) < 0.5 * metres_per_px
     assert fit.drop_per_px > 0.0
+
+
+def _disc_costs():
+    """A crop whose pixels match the top inside a 10 mm disc and the surface outside it."""
+    metres_per_px = 0.001
+    on_top = _pixel_grid(metres_per_px, 40)
+    inside = signed_distances(DISC, np.array([0.02, 0.02, 0.01]), on_top) < 0.0
+    far = np.tile([1.0, 1.0, 1.01, 1.0], (len(on_top), 1))
+    return TopShapeCosts(on_top, far, far, np.full(len(on_top), metres_per_px),
+                         np.where(inside, 0.1, 1.2), np.ones((len(on_top), 2)),
+                         np.where(inside, 1.2, 0.1), 1.2, 0.0, len(on_top))
+
+
+def _fit_in_child(results):
+    fit = fit_top_shape(_disc_costs(), np.array([0.018, 0.021]), (0.0, 0.02, 0.02))
+    results.put(fit.shape)
+
+
+def test_a_process_forked_after_a_fit_fits_too():
+    # the disc is fitted on a worker thread; a forked child (benchmarks' process pools) must
+    # not wait for the parent's thread, which it does not have
+    fit_top_shape(_disc_costs(), np.array([0.018, 0.021]), (0.0, 0.02, 0.02))
+    context = multiprocessing.get_context('fork')
+    results = context.Queue()
+    child = context.Process(target=_fit_in_child, args=(results,))
+    child.start()
+    child.join(60.0)
+    hung = child.is_alive()
+    if hung:
+        child.kill()
+    assert not hung and child.exitcode == 0
+    assert results.get(timeout=5.0) == 'disc'
 
 
 def _area(box, outline, shape):

@@ -32,6 +32,7 @@ away. benchmarks/outline_fit_probe.py measures the rule's variants on the tuning
 from __future__ import annotations
 
 import math
+import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -107,8 +108,22 @@ with the crop, and the points it brought within 3 mm on the tuning splits were o
 faces (benchmarks/EXPERIMENTS.md, nineteenth session)."""
 
 
-_DISC_FITTER = ThreadPoolExecutor(max_workers=1, thread_name_prefix='top_shape_fit')
+def _disc_fitter() -> ThreadPoolExecutor:
+    return ThreadPoolExecutor(max_workers=1, thread_name_prefix='top_shape_fit')
+
+
+_DISC_FITTER = _disc_fitter()
 """Fits the disc while the calling thread fits the rectangle (fit_top_shape)."""
+
+
+def _new_disc_fitter_after_fork() -> None:
+    # A forked child inherits the executor without its thread, but with the count of an idle
+    # one: its first disc would wait forever. It gets an executor of its own.
+    global _DISC_FITTER
+    _DISC_FITTER = _disc_fitter()
+
+
+os.register_at_fork(after_in_child=_new_disc_fitter_after_fork)
 
 
 @dataclass(frozen=True)
