@@ -94,41 +94,16 @@ def plain_top_height(outline: np.ndarray, grey: float, tolerance: float,
     Returns:
         The height, or None when the band leaves either image or no clear peak shows it.
     """
-    band_u, band_v, inside_u, inside_v = _band(outline, left_image)
-    if len(band_u) < 20 or len(inside_u) < 10:
+    alignment = RimAlignment.of(outline, grey, tolerance, left_image, right_image, left, right,
+                                world_from_camera, surface)
+    if alignment is None:
         return None
-    left_smooth = cv2.GaussianBlur(left_image.pixels.astype(np.float32), (0, 0),
-                                   SMOOTHING_SIGMA_PX)
-    right_smooth = cv2.GaussianBlur(right_image.pixels.astype(np.float32), (0, 0),
-                                    SMOOTHING_SIGMA_PX)
-    tolerance = max(float(tolerance), 1e-6)
-    left_member = np.exp(-0.5 * ((left_smooth[band_v - left_image.y, band_u - left_image.x]
-                                  - grey) / tolerance) ** 2)
-    left_member -= left_member.mean()
-    if not np.any(left_member):
-        return None
-    right_tolerance = tolerance * _contrast(right_smooth) / max(_contrast(left_smooth), 1e-6)
-    to_right = _plane_disparity(left, right, world_from_camera, surface)
-    centre = np.array([[float(np.mean(inside_u))], [float(np.mean(inside_v))]])
-    every = max(1, len(inside_u) // LEVEL_SAMPLES)
-    inside_u, inside_v = inside_u[::every], inside_v[::every]
+    centre = alignment.centre
+    to_right = alignment.to_right
     span = to_right(centre[0], centre[1], 0.0) - to_right(centre[0], centre[1], max_height_m)
     count = int(min(2000, max(3, math.ceil(abs(float(span[0])) / DISPARITY_STEP_PX) + 1)))
     heights = np.linspace(0.0, max_height_m, count)
-    scores = np.full(count, -1.0)
-    for index, height in enumerate(heights):
-        band_right = to_right(band_u, band_v, height)
-        inside_right = to_right(inside_u, inside_v, height)
-        if not (_inside(band_right, band_v, right_image)
-                and _inside(inside_right, inside_v, right_image)):
-            continue
-        level = float(np.median(_sample(right_smooth, inside_right, inside_v, right_image)))
-        member = np.exp(-0.5 * ((_sample(right_smooth, band_right, band_v, right_image)
-                                 - level) / right_tolerance) ** 2)
-        member -= member.mean()
-        norm = float(np.linalg.norm(member) * np.linalg.norm(left_member))
-        if norm > 0.0:
-            scores[index] = float(member @ left_member) / norm
+    scores = alignment.scores(heights)
     best = int(np.argmax(scores))
     peak = float(scores[best])
     centre_columns = to_right(np.full(count, centre[0, 0]), np.full(count, centre[1, 0]),
@@ -144,6 +119,80 @@ def plain_top_height(outline: np.ndarray, grey: float, tolerance: float,
         if curvature < 0.0:
             height += 0.5 * (before - after) / curvature * float(heights[1] - heights[0])
     return PlainTopHeight(height, peak, margin)
+
+
+@dataclass(frozen=True)
+class RimAlignment:
+    """How well a plain region's rim in the left image falls on its rim in the right one, for
+    the region on a plane parallel to the surface at a given height: the correlation of the
+    band's memberships in the region's grey (the module's docstring)."""
+
+    band_u: np.ndarray
+    band_v: np.ndarray
+    inside_u: np.ndarray  # at most LEVEL_SAMPLES of them
+    inside_v: np.ndarray
+    left_member: np.ndarray  # the band's memberships in the left image, less their mean
+    right_smooth: np.ndarray
+    right_tolerance: float
+    right_image: RectifiedImage
+    to_right: Callable[[np.ndarray, np.ndarray, float | np.ndarray], np.ndarray]
+    centre: np.ndarray  # (2, 1) the inside's mean pixel (column, row)
+
+    @staticmethod
+    def of(outline: np.ndarray, grey: float, tolerance: float, left_image: RectifiedImage,
+           right_image: RectifiedImage, left: CameraCalibration, right: CameraCalibration,
+           world_from_camera: np.ndarray, surface: SurfacePlane,
+           away_from: np.ndarray | None = None) -> RimAlignment | None:
+        """Return the alignment of the region inside `outline` (as plain_top_height's
+        arguments), or None when its band leaves the image or holds one grey only. With
+        `away_from` (an outline inside it), only the part of the band further than BAND_PX
+        from that outline's own band counts: the part of the rim the smaller region does
+        not share."""
+        band_u, band_v, inside_u, inside_v = _band(outline, left_image)
+        if away_from is not None and len(band_u):
+            contour = np.asarray(away_from, dtype=np.float32).reshape(-1, 1, 2)
+            apart = np.array([abs(cv2.pointPolygonTest(contour, (float(u), float(v)), True))
+                              for u, v in zip(band_u, band_v, strict=True)]) > 2 * BAND_PX
+            band_u, band_v = band_u[apart], band_v[apart]
+        if len(band_u) < 20 or len(inside_u) < 10:
+            return None
+        left_smooth = cv2.GaussianBlur(left_image.pixels.astype(np.float32), (0, 0),
+                                       SMOOTHING_SIGMA_PX)
+        right_smooth = cv2.GaussianBlur(right_image.pixels.astype(np.float32), (0, 0),
+                                        SMOOTHING_SIGMA_PX)
+        tolerance = max(float(tolerance), 1e-6)
+        left_member = np.exp(-0.5 * ((left_smooth[band_v - left_image.y, band_u - left_image.x]
+                                      - grey) / tolerance) ** 2)
+        left_member -= left_member.mean()
+        if not np.any(left_member):
+            return None
+        right_tolerance = tolerance * _contrast(right_smooth) / max(_contrast(left_smooth), 1e-6)
+        centre = np.array([[float(np.mean(inside_u))], [float(np.mean(inside_v))]])
+        every = max(1, len(inside_u) // LEVEL_SAMPLES)
+        return RimAlignment(band_u, band_v, inside_u[::every], inside_v[::every], left_member,
+                            right_smooth, right_tolerance, right_image,
+                            _plane_disparity(left, right, world_from_camera, surface), centre)
+
+    def scores(self, heights: np.ndarray) -> np.ndarray:
+        """Return the correlation at each height [m] above the surface, -1 where the band or
+        the inside leaves the right image."""
+        scores = np.full(len(heights), -1.0)
+        for index, height in enumerate(heights):
+            band_right = self.to_right(self.band_u, self.band_v, height)
+            inside_right = self.to_right(self.inside_u, self.inside_v, height)
+            if not (_inside(band_right, self.band_v, self.right_image)
+                    and _inside(inside_right, self.inside_v, self.right_image)):
+                continue
+            level = float(np.median(_sample(self.right_smooth, inside_right, self.inside_v,
+                                            self.right_image)))
+            member = np.exp(-0.5 * ((_sample(self.right_smooth, band_right, self.band_v,
+                                             self.right_image) - level)
+                                    / self.right_tolerance) ** 2)
+            member -= member.mean()
+            norm = float(np.linalg.norm(member) * np.linalg.norm(self.left_member))
+            if norm > 0.0:
+                scores[index] = float(member @ self.left_member) / norm
+        return scores
 
 
 def _band(outline: np.ndarray, image: RectifiedImage
