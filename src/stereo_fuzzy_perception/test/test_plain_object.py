@@ -13,7 +13,10 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     AreaConfig,
     find_correlation_area,
 )
-from stereo_fuzzy_perception.core.best_point.plain_object import plain_object_from_image
+from stereo_fuzzy_perception.core.best_point.plain_object import (
+    plain_object_from_image,
+    plain_top_at_matched_height,
+)
 from stereo_fuzzy_perception.core.best_point.point_selectors import decision_area
 from stereo_fuzzy_perception.core.matched_points import RectifiedImage
 
@@ -110,3 +113,54 @@ def test_an_empty_or_malformed_image_is_no_object(shape):
     for pair in ((broken, good), (good, broken)):
         assert plain_object_from_image(refused, with_images(points, *pair), left, right, POSE,
                                        CONFIG) is None
+
+
+def scattered_plain_face(box, matched_height):
+    """The face a plain top's matches give (its rim: plain_rim_px) at a matched height, as
+    CorrelationArea.scattered_face holds it, with the pair's matches."""
+    points, left, right = grid_matches(RIG, box, 0.05, 1, image=True, plain_rim_px=5)
+    area = find_correlation_area(points, POSE, CONFIG, float(left.P[0, 2] - right.P[0, 2]))
+    face = area.face_in_pieces if area.face_in_pieces is not None else area.scattered_face
+    assert face is not None, area.reason
+    return dataclasses.replace(face, top_height=matched_height), points, left, right
+
+
+@pytest.mark.parametrize('wall_grey', [70.0, 200.0])
+def test_a_scattered_plain_face_is_taken_at_its_matched_height_where_both_images_agree(
+        wall_grey):
+    # With walls of the top's grey the plain region reaches down them to the table, and
+    # plain_top_height finds no clear height; the matched height, where the region's rim
+    # lies in both images far better than on the surface, is the top's.
+    box = Box((0.2, 0.15), 0.04, 0.03)
+    face, points, left, right = scattered_plain_face(box, 0.0305)
+    images = plain_box_pair(RIG, box, top_grey=200.0, wall_grey=wall_grey)[:2]
+    found = plain_top_at_matched_height(face, with_images(points, *images), left, right, POSE,
+                                        CONFIG)
+    assert found is not None and found.ok
+    assert found.top_height == face.top_height
+    assert np.linalg.norm(face_centre(found) - [*box.centre_xy, 0.0305]) < 0.002
+
+
+def test_a_plain_patch_on_the_table_is_not_raised_to_a_scattered_faces_height():
+    # A plain patch printed on the table where the left image would show a top 30 mm high,
+    # and matches around it that claim that top: the patch's rim lies in both images where
+    # the table's does, not 30 mm up.
+    box = Box((0.2, 0.15), 0.04, 0.03)
+    face, points, left, right = scattered_plain_face(box, 0.03)
+    camera = POSE[:3, 3]
+    along = camera[2] / (camera[2] - box.height)  # the left ray through the top, to the table
+    under = camera[:2] + along * (np.asarray(box.centre_xy) - camera[:2])
+    patch = Box(tuple(under), box.size * along, 0.0)
+    images = plain_box_pair(RIG, patch, top_grey=200.0)[:2]
+    assert plain_top_at_matched_height(face, with_images(points, *images), left, right, POSE,
+                                       CONFIG) is None
+
+
+def test_a_scattered_face_that_no_plain_region_holds_is_not_taken():
+    box = Box((0.2, 0.15), 0.04, 0.03)
+    face, points, left, right = scattered_plain_face(box, 0.03)
+    elsewhere = plain_box_pair(RIG, Box((0.3, 0.05), 0.04, 0.03), top_grey=200.0)[:2]
+    assert plain_top_at_matched_height(face, with_images(points, *elsewhere), left, right, POSE,
+                                       CONFIG) is None
+    assert plain_top_at_matched_height(face, with_images(points, elsewhere[0], None), left,
+                                       right, POSE, CONFIG) is None

@@ -21,6 +21,9 @@ after every other look:
 4. Exactly one such face, of an object's size on its top plane, is the object; two or more are
    not told apart, and none is given.
 
+plain_top_at_matched_height looks at a face refused for its scatter the same way: the plain
+region holding its matches, at the face's matched height when both images confirm it.
+
 ROS-free: numpy, scipy and OpenCV.
 """
 
@@ -45,6 +48,7 @@ from stereo_fuzzy_perception.core.best_point.face_outline import (
     PLAIN_SEED_SHARE,
     PLAIN_TOLERANCE_GREY,
     PLAIN_TOLERANCE_SIGMAS,
+    SCATTERED_SEED_SHARE,
     SMOOTHING_SIGMA_PX,
     face_within,
     plain_region,
@@ -54,7 +58,11 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     grid_step,
     local_contrast,
 )
-from stereo_fuzzy_perception.core.best_point.plain_top_height import plain_top_height
+from stereo_fuzzy_perception.core.best_point.plain_top_height import (
+    MIN_MARGIN,
+    RimAlignment,
+    plain_top_height,
+)
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 
@@ -78,6 +86,18 @@ with no match to confirm the face, only a rim both images show clearly is taken.
 SEED_MARGIN_PX = 10
 """Added to the seed's size around it for the box its face is looked for in [px]."""
 
+HOLDS_WITHIN_PX = 3.0
+"""A scattered face's match lies in a plain region when it lies inside its outline or within
+this of it (the rim's matches straddle the rim) [px]."""
+
+MIN_RISE = MIN_MARGIN
+"""At a scattered face's matched height the rim's memberships correlate at least this much
+better than at the surface's: the plain region stands there, not on the surface."""
+
+PlainOutline = tuple[np.ndarray, float, float]
+"""A plain region's outline (K, 2) in the left rectified image [px], its grey and the
+tolerance that found it (_plain_outline)."""
+
 
 def plain_object_from_image(refused: CorrelationArea, points: MatchedPoints,
                             left: CameraCalibration, right: CameraCalibration,
@@ -99,10 +119,145 @@ def plain_object_from_image(refused: CorrelationArea, points: MatchedPoints,
         The area whose points are the face's pixels on the matches' grid, cut with its top
         plane (status ok); None when the images show no such object, or more than one.
     """
+    if refused.status == NO_POINTS:
+        return None
+    looked = _plain_outlines(refused, points, left, right, world_from_camera, config)
+    if looked is None:
+        return None
+    outlines, base, step = looked
+    if len(outlines) > MAX_FACES:
+        return None  # plain patches of an object's shape all over: nothing tells them apart
+    found = [face for face in (
+        _face_at_its_height(outline, level, tolerance, base, step, points, left, right,
+                            world_from_camera, config) for outline, level, tolerance in outlines)
+        if face is not None]
+    return found[0] if len(found) == 1 else None
+
+
+def plain_top_at_matched_height(face: CorrelationArea, points: MatchedPoints,
+                                left: CameraCalibration, right: CameraCalibration,
+                                world_from_camera: np.ndarray, config: AreaConfig
+                                ) -> CorrelationArea | None:
+    """Return a face refused for its scatter as the plain region that holds it, at its matched
+    height, or None.
+
+    A plain top is matched along its rim, where the windows see the rim's edge, and inside on
+    sensor noise: its heights scatter, yet their densest upper level is often the top's.
+    plain_top_height's search over every height finds no clear peak on most such tops: a
+    side wall of the top's grey joins the region, and its foot aligns on the surface. Here
+    the height is the face's own (CorrelationArea.top_height), and both images only confirm
+    it. Of the left image's plain regions (the seeds and faces of plain_object_from_image)
+    that hold SCATTERED_SEED_SHARE of the face's matches, each without its side wall where
+    one shows (_without_side_wall), the one whose rim, carried to the right image by the
+    face's height, lies on the right image's rim better than carried by the surface's by the
+    most is taken at that height, when by at least MIN_RISE: the region stands there, it is
+    not a patch of the surface.
+
+    Args:
+        face: CorrelationArea.scattered_face of the refused area.
+        points: The pair's matches, with both rectified images (left_image, right_image).
+        left: Rectified calibration of the left image.
+        right: Rectified calibration of the right image.
+        world_from_camera: 4x4 pose of the left optical frame in `world`.
+        config: The correlation area's settings (min_points, min/max_object_across_m).
+
+    Returns:
+        The area whose points are the region's pixels on the matches' grid, cut with the
+        face's top plane (status ok); None when no plain region holds the face or it does not
+        stand at the face's height.
+    """
+    looked = _plain_outlines(face, points, left, right, world_from_camera, config)
+    if looked is None or len(face.u_left) == 0:
+        return None
+    outlines, base, step = looked
+    assert points.left_image is not None and points.right_image is not None
+    rises = []
+    for outline, level, tolerance in outlines:
+        if _share_held(outline, face) < SCATTERED_SEED_SHARE:
+            continue
+        top = _without_side_wall(outline, level, tolerance, face, base, step, points, left,
+                                 right, world_from_camera)
+        alignment = RimAlignment.of(top, level, tolerance, points.left_image,
+                                    points.right_image, left, right, world_from_camera,
+                                    face.surface)
+        if alignment is not None:
+            at_face, at_surface = alignment.scores(np.array([face.top_height, 0.0]))
+            rises.append((at_face - at_surface, top))
+    if not rises:
+        return None
+    rise, outline = max(rises, key=lambda item: item[0])
+    if rise < MIN_RISE:
+        return None
+    found = face_within(dataclasses.replace(base, top_height=face.top_height), outline, step,
+                        left, right, world_from_camera, config.min_points)
+    if found is None:
+        return None
+    length = across_m(found.xyz_world[:, :2])
+    if not config.min_object_across_m <= length <= config.max_object_across_m:
+        return None
+    return found
+
+
+def _without_side_wall(outline: np.ndarray, level: float, tolerance: float,
+                       face: CorrelationArea, base: CorrelationArea, step: float,
+                       points: MatchedPoints, left: CameraCalibration,
+                       right: CameraCalibration, world_from_camera: np.ndarray) -> np.ndarray:
+    """Return the region's outline, or that of its part above its own foot when the rest of
+    its rim lies on the surface: a side wall of the top's grey joins the region down to the
+    surface, and where it does, the region's rim is the wall's foot."""
+    top = _above_own_foot(outline, face.top_height, base, step, left, right, world_from_camera)
+    if top is None:
+        return outline
+    assert points.left_image is not None and points.right_image is not None
+    beyond = RimAlignment.of(outline, level, tolerance, points.left_image, points.right_image,
+                             left, right, world_from_camera, face.surface, away_from=top)
+    if beyond is None:
+        return outline  # the part is the whole region, or its rim's rest too short to tell
+    at_face, at_surface = beyond.scores(np.array([face.top_height, 0.0]))
+    return top if at_surface > at_face else outline
+
+
+def _above_own_foot(outline: np.ndarray, height: float, base: CorrelationArea, step: float,
+                    left: CameraCalibration, right: CameraCalibration,
+                    world_from_camera: np.ndarray) -> np.ndarray | None:
+    """Return the outline of the region's pixels whose point on the top's plane, moved down
+    to the surface, the left image shows inside the region too, or None when none does."""
+    face = face_within(dataclasses.replace(base, top_height=height), outline, step, left, right,
+                       world_from_camera, 3)
+    if face is None:
+        return None
+    feet = face.xyz_world - height * face.surface.normal
+    camera_from_world = np.linalg.inv(np.asarray(world_from_camera, dtype=float))
+    projection = np.asarray(left.P, dtype=float)[:3, :3] @ np.asarray(
+        left.R, dtype=float).reshape(3, 3)
+    seen = projection @ (camera_from_world[:3, :3] @ feet.T + camera_from_world[:3, 3:4])
+    contour = outline.astype(np.float32).reshape(-1, 1, 2)
+    kept = np.array([cv2.pointPolygonTest(contour, (float(u), float(v)), True) >= -1.0
+                     for u, v in (seen[:2] / seen[2]).T])
+    if np.count_nonzero(kept) < 3:
+        return None
+    hull = cv2.convexHull(np.column_stack([face.u_left[kept], face.v_left[kept]]).astype(
+        np.float32)).reshape(-1, 2)
+    return hull.astype(float) if len(hull) >= 3 and cv2.contourArea(hull) >= 4.0 else None
+
+
+def _share_held(outline: np.ndarray, face: CorrelationArea) -> float:
+    """Return the share of the face's matches inside the outline or within HOLDS_WITHIN_PX."""
+    contour = outline.astype(np.float32).reshape(-1, 1, 2)
+    return float(np.mean([cv2.pointPolygonTest(contour, (float(u), float(v)), True)
+                          >= -HOLDS_WITHIN_PX
+                          for u, v in zip(face.u_left, face.v_left, strict=True)]))
+
+
+def _plain_outlines(area: CorrelationArea, points: MatchedPoints, left: CameraCalibration,
+                    right: CameraCalibration, world_from_camera: np.ndarray, config: AreaConfig
+                    ) -> tuple[list[PlainOutline], CorrelationArea, float] | None:
+    """Return the faces of the left image's plain seeds, the area their faces are made from
+    (the area's surface, the matches' grid) and the grid's step, or None when the pair has
+    no images to look at."""
     image, right_image = points.left_image, points.right_image
     finite = np.isfinite(points.u_left) & np.isfinite(points.v_left)
-    if (refused.status == NO_POINTS or image is None or right_image is None
-            or not np.any(finite)
+    if (image is None or right_image is None or not np.any(finite)
             or any(part.pixels.ndim != 2 or min(part.pixels.shape) < 2
                    for part in (image, right_image))):
         return None  # nothing to look at (a peer's empty or malformed image is no object)
@@ -111,9 +266,9 @@ def plain_object_from_image(refused: CorrelationArea, points: MatchedPoints,
     seeds = _seed_regions(smooth, grey_level)
     u, v = points.u_left[finite], points.v_left[finite]
     step = grid_step(u, v)
-    # The face's points come from the refused area's surface and the matches' grid; the area
-    # itself has no points to give them.
-    base = dataclasses.replace(refused, status=STATUS_OK, reason='', u_left=u[:1],
+    # The face's points come from the area's surface and the matches' grid; a refused area
+    # has no points to give them.
+    base = dataclasses.replace(area, status=STATUS_OK, reason='', u_left=u[:1],
                                v_left=v[:1], u_right=u[:1], xyz_world=np.zeros((1, 3)),
                                score=np.array([float(np.median(points.score[finite]))]),
                                weight=None, face_in_pieces=None, scattered_face=None,
@@ -122,13 +277,7 @@ def plain_object_from_image(refused: CorrelationArea, points: MatchedPoints,
         _plain_outline(smooth, rows, columns, grey_level, base, step, points, left, right,
                        world_from_camera, config) for rows, columns in seeds)
         if outline is not None]
-    if len(outlines) > MAX_FACES:
-        return None  # plain patches of an object's shape all over: nothing tells them apart
-    found = [face for face in (
-        _face_at_its_height(outline, level, tolerance, base, step, points, left, right,
-                            world_from_camera, config) for outline, level, tolerance in outlines)
-        if face is not None]
-    return found[0] if len(found) == 1 else None
+    return outlines, base, step
 
 
 def _seed_regions(smooth: np.ndarray, grey_level: float) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -155,7 +304,7 @@ def _plain_outline(smooth: np.ndarray, rows: np.ndarray, columns: np.ndarray,
                    grey_level: float, base: CorrelationArea, step: float,
                    points: MatchedPoints, left: CameraCalibration, right: CameraCalibration,
                    world_from_camera: np.ndarray, config: AreaConfig
-                   ) -> tuple[np.ndarray, float, float] | None:
+                   ) -> PlainOutline | None:
     """Return (outline (K, 2) in the left rectified image [px], grey level, tolerance) of the
     face grown from one seed region, or None when it is no object's face at any height."""
     image = points.left_image

@@ -60,7 +60,10 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     on_pixel_grid,
     width_m,
 )
-from stereo_fuzzy_perception.core.best_point.plain_object import plain_object_from_image
+from stereo_fuzzy_perception.core.best_point.plain_object import (
+    plain_object_from_image,
+    plain_top_at_matched_height,
+)
 from stereo_fuzzy_perception.core.best_point.rule_base import (
     RuleBase,
     RuleBaseError,
@@ -416,6 +419,7 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     """
     shift = disparity_shift(left, right)
     area = find_correlation_area(points, world_from_camera, config, shift)
+    scattered = area.scattered_face
     if points.left_image is not None and config.outline_from_image:
         if area.ok:
             area = face_from_image(area, points.left_image, left, right, world_from_camera,
@@ -452,6 +456,11 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
             # stands out of nothing; the image still shows it, both images its height.
             area = plain_object_from_image(area, points, left, right, world_from_camera,
                                            config) or area
+        if not area.ok and scattered is not None and points.right_image is not None:
+            # Last, a scattered face whose top is plain: the plain region holding it, at its
+            # matched height when both images put the region's rim there.
+            area = plain_top_at_matched_height(scattered, points, left, right,
+                                               world_from_camera, config) or area
     if area.ok and config.min_object_across_m > 0.0:
         width = width_m(area.xyz_world[:, :2])
         if width < config.min_object_across_m:
