@@ -164,3 +164,19 @@ def test_a_scattered_face_that_no_plain_region_holds_is_not_taken():
                                        CONFIG) is None
     assert plain_top_at_matched_height(face, with_images(points, elsewhere[0], None), left,
                                        right, POSE, CONFIG) is None
+
+
+def test_a_sliver_of_a_plain_tops_rim_gives_the_whole_top():
+    # One arc of the rim, matched at the top's height: the plain region it bounds is the top.
+    box = Box((0.2, 0.15), 0.04, 0.03)
+    face, points, left, right = scattered_plain_face(box, 0.03)
+    arc = face.u_left < np.percentile(face.u_left, 15)
+    sliver = dataclasses.replace(face, u_left=face.u_left[arc], v_left=face.v_left[arc],
+                                 u_right=face.u_right[arc], xyz_world=face.xyz_world[arc],
+                                 score=face.score[arc], weight=None)
+    images = plain_box_pair(RIG, box, top_grey=200.0)[:2]
+    found = plain_top_at_matched_height(sliver, with_images(points, *images), left, right,
+                                        POSE, CONFIG)
+    assert found is not None
+    assert np.linalg.norm(face_centre(found) - [*box.centre_xy, 0.03]) < 0.002
+    assert len(found.u_left) > 5 * np.count_nonzero(arc)  # the whole top, not the arc

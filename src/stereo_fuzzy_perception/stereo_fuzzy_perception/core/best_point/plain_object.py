@@ -21,8 +21,9 @@ after every other look:
 4. Exactly one such face, of an object's size on its top plane, is the object; two or more are
    not told apart, and none is given.
 
-plain_top_at_matched_height looks at a face refused for its scatter the same way: the plain
-region holding its matches, at the face's matched height when both images confirm it.
+plain_top_at_matched_height looks at a face refused for its scatter, or too narrow for any
+object, the same way: the plain region holding its matches, at the face's matched height when
+both images confirm it.
 
 ROS-free: numpy, scipy and OpenCV.
 """
@@ -138,8 +139,8 @@ def plain_top_at_matched_height(face: CorrelationArea, points: MatchedPoints,
                                 left: CameraCalibration, right: CameraCalibration,
                                 world_from_camera: np.ndarray, config: AreaConfig
                                 ) -> CorrelationArea | None:
-    """Return a face refused for its scatter as the plain region that holds it, at its matched
-    height, or None.
+    """Return a face refused for its scatter (or a sliver: a face narrower than any object) as
+    the plain region that holds it, at its matched height, or None.
 
     A plain top is matched along its rim, where the windows see the rim's edge, and inside on
     sensor noise: its heights scatter, yet their densest upper level is often the top's.
@@ -154,7 +155,8 @@ def plain_top_at_matched_height(face: CorrelationArea, points: MatchedPoints,
     not a patch of the surface.
 
     Args:
-        face: CorrelationArea.scattered_face of the refused area.
+        face: CorrelationArea.scattered_face of the refused area, or a face too narrow for
+            any object (one arc of a plain top's rim, matched at the top's height).
         points: The pair's matches, with both rectified images (left_image, right_image).
         left: Rectified calibration of the left image.
         right: Rectified calibration of the right image.

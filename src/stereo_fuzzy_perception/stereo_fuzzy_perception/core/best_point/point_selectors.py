@@ -416,6 +416,9 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     the image's textured regions (correlation_area.find_textured_area), and then, with the
     right image, for one plain object on a textured surface (plain_object.py). A face that
     passed it all and stands low has its rim refined from its appearance (face_appearance.py).
+    A face refused for its scatter, and a sliver, may be a plain top's: the plain region of
+    the image that holds it is taken at its height when both images put it there
+    (plain_object.plain_top_at_matched_height).
     """
     shift = disparity_shift(left, right)
     area = find_correlation_area(points, world_from_camera, config, shift)
@@ -463,6 +466,13 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
                                                world_from_camera, config) or area
     if area.ok and config.min_object_across_m > 0.0:
         width = width_m(area.xyz_world[:, :2])
+        if width < config.min_object_across_m and points.right_image is not None:
+            # A plain top whose matches are one arc of its rim: the plain region the arc
+            # bounds, at the arc's height when both images put the region there.
+            whole = plain_top_at_matched_height(area, points, left, right, world_from_camera,
+                                                config)
+            if whole is not None:
+                area, width = whole, width_m(whole.xyz_world[:, :2])
         if width < config.min_object_across_m:
             return replace(area, status=NO_OBJECT, reason=(
                 f'the top face found is {1000.0 * width:.1f} mm wide on the work surface, '
