@@ -190,14 +190,8 @@ def plain_top_at_matched_height(face: CorrelationArea, points: MatchedPoints,
     rise, outline = max(rises, key=lambda item: item[0])
     if rise < MIN_RISE:
         return None
-    found = face_within(dataclasses.replace(base, top_height=face.top_height), outline, step,
-                        left, right, world_from_camera, config.min_points)
-    if found is None:
-        return None
-    length = across_m(found.xyz_world[:, :2])
-    if not config.min_object_across_m <= length <= config.max_object_across_m:
-        return None
-    return found
+    return _object_sized_face(base, face.top_height, outline, step, left, right,
+                              world_from_camera, config)
 
 
 def _without_side_wall(outline: np.ndarray, level: float, tolerance: float,
@@ -349,8 +343,18 @@ def _face_at_its_height(outline: np.ndarray, level: float, tolerance: float,
     if (measured is None or measured.peak < MIN_PEAK
             or measured.height_m < config.min_object_height_m):
         return None
-    face = face_within(dataclasses.replace(base, top_height=measured.height_m), outline, step,
-                       left, right, world_from_camera, config.min_points)
+    return _object_sized_face(base, measured.height_m, outline, step, left, right,
+                              world_from_camera, config)
+
+
+def _object_sized_face(base: CorrelationArea, height: float, outline: np.ndarray, step: float,
+                       left: CameraCalibration, right: CameraCalibration,
+                       world_from_camera: np.ndarray, config: AreaConfig
+                       ) -> CorrelationArea | None:
+    """Return the face inside outline on the top plane at `height`, or None when it has fewer
+    than min_points grid pixels or is no object's size on that plane."""
+    face = face_within(dataclasses.replace(base, top_height=height), outline, step, left, right,
+                       world_from_camera, config.min_points)
     if face is None:
         return None
     length = across_m(face.xyz_world[:, :2])
