@@ -466,7 +466,8 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
                                                world_from_camera, config) or area
     if area.ok and config.min_object_across_m > 0.0:
         width = width_m(area.xyz_world[:, :2])
-        if width < config.min_object_across_m and points.right_image is not None:
+        if (width < config.min_object_across_m and config.outline_from_image
+                and points.right_image is not None):
             # A plain top whose matches are one arc of its rim: the plain region the arc
             # bounds, at the arc's height when both images put the region there.
             whole = plain_top_at_matched_height(area, points, left, right, world_from_camera,
