@@ -36,6 +36,7 @@ from stereo_fuzzy_perception.core.best_point.face_outline import (
     crop_around,
     face_within,
     hull_outline,
+    left_image_pixels,
 )
 from stereo_fuzzy_perception.core.best_point.object_segmentation import grid_step, local_contrast
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
@@ -90,14 +91,7 @@ def side_wall_px(area: CorrelationArea, left: CameraCalibration,
     weight = area.point_weights()
     centre = (weight / weight.sum()) @ area.xyz_world
     foot = centre - area.top_height * area.surface.normal
-    camera_from_world = np.linalg.inv(np.asarray(world_from_camera, dtype=float))
-    rectification = np.asarray(left.R, dtype=float).reshape(3, 3)
-    intrinsic = np.asarray(left.P, dtype=float)[:3, :3]
-    pixels = []
-    for point in (centre, foot):
-        projected = intrinsic @ rectification @ (camera_from_world[:3, :3] @ point
-                                                 + camera_from_world[:3, 3])
-        pixels.append(projected[:2] / projected[2])
+    pixels = left_image_pixels(np.vstack([centre, foot]), left, world_from_camera)
     return float(np.linalg.norm(pixels[0] - pixels[1]))
 
 

@@ -386,6 +386,20 @@ def world_rays(columns: np.ndarray, rows: np.ndarray, left: CameraCalibration,
     return rays
 
 
+def left_image_pixels(world: np.ndarray, left: CameraCalibration,
+                      world_from_camera: np.ndarray) -> np.ndarray:
+    """Return where the left rectified image shows the points world (N, 3): (N, 2) [px], the
+    inverse of world_rays."""
+    camera_from_world = np.linalg.inv(np.asarray(world_from_camera, dtype=float))
+    rectification = np.asarray(left.R, dtype=float).reshape(3, 3)
+    intrinsic = np.asarray(left.P, dtype=float)[:3, :3]
+    projected = intrinsic @ (rectification @ (camera_from_world[:3, :3]
+                                              @ np.asarray(world, dtype=float).T
+                                              + camera_from_world[:3, 3:4]))
+    pixels: np.ndarray = (projected[:2] / projected[2]).T
+    return pixels
+
+
 def on_top_plane(area: CorrelationArea, columns: np.ndarray, rows: np.ndarray,
                   left: CameraCalibration, right: CameraCalibration,
                   world_from_camera: np.ndarray) -> CorrelationArea | None:

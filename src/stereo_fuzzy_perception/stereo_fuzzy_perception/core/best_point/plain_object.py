@@ -52,6 +52,7 @@ from stereo_fuzzy_perception.core.best_point.face_outline import (
     SCATTERED_SEED_SHARE,
     SMOOTHING_SIGMA_PX,
     face_within,
+    left_image_pixels,
     plain_region,
 )
 from stereo_fuzzy_perception.core.best_point.object_segmentation import (
@@ -222,14 +223,11 @@ def _above_own_foot(outline: np.ndarray, height: float, base: CorrelationArea, s
                        world_from_camera, 3)
     if face is None:
         return None
-    feet = face.xyz_world - height * face.surface.normal
-    camera_from_world = np.linalg.inv(np.asarray(world_from_camera, dtype=float))
-    projection = np.asarray(left.P, dtype=float)[:3, :3] @ np.asarray(
-        left.R, dtype=float).reshape(3, 3)
-    seen = projection @ (camera_from_world[:3, :3] @ feet.T + camera_from_world[:3, 3:4])
+    feet = left_image_pixels(face.xyz_world - height * face.surface.normal, left,
+                             world_from_camera)
     contour = outline.astype(np.float32).reshape(-1, 1, 2)
     kept = np.array([cv2.pointPolygonTest(contour, (float(u), float(v)), True) >= -1.0
-                     for u, v in (seen[:2] / seen[2]).T])
+                     for u, v in feet])
     if np.count_nonzero(kept) < 3:
         return None
     hull = cv2.convexHull(np.column_stack([face.u_left[kept], face.v_left[kept]]).astype(
