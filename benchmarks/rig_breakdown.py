@@ -30,7 +30,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'src' / 'stereo_fuzzy_perception'))
 
 import numpy as np  # noqa: E402
-from stereo_fuzzy_perception.simulation.scene_distribution import draw_rig  # noqa: E402
+from stereo_fuzzy_perception.simulation.scene_distribution import (  # noqa: E402
+    DEFAULT_SETTINGS,
+    DistributionSettings,
+    draw_rig,
+)
 
 ROWS = {'fitted rules': 'fuzzy_fitted', 'ceiling': 'ceiling: fuzzy_fitted',
         'OpenCV': 'opencv (SGBM + largest component + top band)'}
@@ -40,9 +44,10 @@ DISPARITY_STEP_PX = 0.1
 """The disparity error the resolution is given for [px]."""
 
 
-def depth_per_disparity_mm(rig_index: int) -> float:
+def depth_per_disparity_mm(rig_index: int,
+                           settings: DistributionSettings = DEFAULT_SETTINGS) -> float:
     """Return the depth change [mm] per DISPARITY_STEP_PX where the rig looks at z = 0."""
-    drawn = draw_rig(rig_index)
+    drawn = draw_rig(rig_index, settings)
     pose = drawn.rig.world_from_left_camera()
     centre, axis = pose[:3, 3], pose[:3, 2]
     if axis[2] >= 0.0:

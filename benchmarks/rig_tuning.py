@@ -83,7 +83,9 @@ from stereo_fuzzy_perception.core.best_point.second_look import (  # noqa: E402
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
 from stereo_fuzzy_perception.simulation.distribution_source import match_plan  # noqa: E402
 from stereo_fuzzy_perception.simulation.scene_distribution import (  # noqa: E402
+    DEFAULT_SETTINGS,
     OBJECT_TYPES,
+    DistributionSettings,
     split_plan,
 )
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene  # noqa: E402
@@ -98,16 +100,22 @@ RESOLUTION_SPLIT_MM = 1.0
 
 
 def scenes(split: str, per_type: int, stride: int, cache: Path, jobs: int,
-           oversampling: int = 1) -> list[tuple[str, SyntheticScene]]:
-    """Return (label, matched scene) of the split's scenes (cached after the first run)."""
+           oversampling: int = 1, settings: DistributionSettings = DEFAULT_SETTINGS
+           ) -> list[tuple[str, SyntheticScene]]:
+    """Return (label, matched scene) of the split's scenes (cached after the first run).
+
+    With settings of another rig_pool_seed, the split's rigs are drawn from that pool: rigs
+    that neither tuning nor the evaluation split ever used (--rig-pool-seed)."""
     if split not in SPLITS:
         raise ValueError(f'split {split!r}: tuning reads only {", ".join(SPLITS)}')
     rendering = f'_oversampled{oversampling}' if oversampling > 1 else ''
-    path = cache / f'rig_tuning_{split}_{per_type}_{stride}{rendering}.pickle'
+    pool = ('' if settings.rig_pool_seed == DEFAULT_SETTINGS.rig_pool_seed
+            else f'_pool{settings.rig_pool_seed}')
+    path = cache / f'rig_tuning_{split}_{per_type}_{stride}{rendering}{pool}.pickle'
     if path.exists():
         loaded: list[tuple[str, SyntheticScene]] = pickle.loads(path.read_bytes())
         return loaded
-    plan = split_plan(split, per_type)
+    plan = split_plan(split, per_type, settings)
     result = [(f'seed {item.scene.seed} rig {item.scene.rig.index} '
                f'top {item.scene.top_width_px:.0f} px {item.scene.scene.object_texture_family}',
                item.matched[stride])
@@ -335,6 +343,9 @@ def main() -> None:
                         help='at a --point-stride above 1, look again at stride 1 at a face '
                              'too thin, as fuzzy_best_point_node does (second_look_stride_one); '
                              "the split's stride-1 matches (cached too) stand for matching again")
+    parser.add_argument('--rig-pool-seed', type=int, default=DEFAULT_SETTINGS.rig_pool_seed,
+                        help='draw the split\'s rigs from the pool of this seed instead: rigs '
+                             'that neither tuning nor the evaluation split used')
     parser.add_argument('--by-rig', action='store_true',
                         help='the outcomes of rigs on either side of 1 mm of depth per 0.1 px '
                              '(rig_breakdown.py)')
@@ -343,10 +354,11 @@ def main() -> None:
         parser.error(f'--from-scene {args.from_scene} must be in 0..{args.per_type - 1}')
     if args.against and not Path(args.against).is_file():
         parser.error(f'--against {args.against}: no such file (write one with --save)')
+    settings = replace(DEFAULT_SETTINGS, rig_pool_seed=args.rig_pool_seed)
     matched = scenes(args.split, args.per_type, args.point_stride, Path(args.cache), args.jobs,
-                     args.oversampling)[args.from_scene * len(OBJECT_TYPES):]
+                     args.oversampling, settings)[args.from_scene * len(OBJECT_TYPES):]
     at_stride_one = (dict(scenes(args.split, args.per_type, 1, Path(args.cache), args.jobs,
-                                 args.oversampling))
+                                 args.oversampling, settings))
                      if args.second_look and args.point_stride > 1 else {})
     config = replace(AreaConfig(), **{item.partition('=')[0]: float(item.partition('=')[2])
                                       for item in args.area})
@@ -389,7 +401,7 @@ def main() -> None:
             if args.by_rig:
                 rigs = {rig_of(label) for label in by_scene}
                 print('\n'.join(outcomes_by_resolution(
-                    by_scene, {rig: depth_per_disparity_mm(rig) for rig in rigs},
+                    by_scene, {rig: depth_per_disparity_mm(rig, settings) for rig in rigs},
                     args.tolerance_mm)))
         if name != 'centroid':
             continue
