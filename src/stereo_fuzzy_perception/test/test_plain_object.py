@@ -180,3 +180,16 @@ def test_a_sliver_of_a_plain_tops_rim_gives_the_whole_top():
     assert found is not None
     assert np.linalg.norm(face_centre(found) - [*box.centre_xy, 0.03]) < 0.002
     assert len(found.u_left) > 5 * np.count_nonzero(arc)  # the whole top, not the arc
+
+
+@pytest.mark.parametrize('matched_height', [0.022, 0.04])
+def test_a_scattered_plain_face_is_not_taken_at_a_height_both_images_put_elsewhere(
+        matched_height):
+    # Matches that agree on a height 8-10 mm off the top's: the region's rim carried by that
+    # height still lies on the right image's rim far better than carried by the surface's,
+    # yet better still at the top's own height; the matched height is not confirmed.
+    box = Box((0.2, 0.15), 0.04, 0.03)
+    face, points, left, right = scattered_plain_face(box, matched_height)
+    images = plain_box_pair(RIG, box, top_grey=200.0)[:2]
+    assert plain_top_at_matched_height(face, with_images(points, *images), left, right, POSE,
+                                       CONFIG) is None

@@ -81,3 +81,25 @@ def test_a_scattered_plain_face_takes_its_height_from_both_images():
     assert np.linalg.norm(centre - [*box.centre_xy, box.height]) < 0.002
     matched = plain_face_from_image(scattered, left_image, left, right, POSE, 20, 0.1)
     assert matched is not None and matched.top_height == scattered.top_height
+
+
+@pytest.mark.parametrize('raised', [0.0, 0.004, 0.015])
+def test_a_scattered_face_is_not_taken_at_a_height_below_nearly_all_its_matches(raised):
+    # Both images put the plain top 30 mm up. Matches that stand around that height, or a
+    # little above it (mismatches above a plain top are common), leave it there; matches that
+    # all stand 15 mm higher say the rim found belongs to another level: no face.
+    box = Box((0.2, 0.15), 0.04, 0.03)
+    points, left, right = grid_matches(RIG, box, 0.05, 1, image=True, plain_rim_px=5)
+    area = find_correlation_area(points, POSE, AreaConfig(), float(left.P[0, 2] - right.P[0, 2]))
+    assert area.face_in_pieces is not None, area.reason
+    face = area.face_in_pieces
+    scattered = dataclasses.replace(face, xyz_world=face.xyz_world + [0.0, 0.0, raised],
+                                    top_height=face.top_height + raised)
+    left_image, right_image, _, _, _ = plain_box_pair(RIG, box, top_grey=200.0)
+    whole = plain_face_from_image(scattered, left_image, left, right, POSE, 20, 0.1,
+                                  right_image=right_image)
+    if raised > 0.01:
+        assert whole is None
+    else:
+        assert whole is not None
+        assert whole.top_height == pytest.approx(0.03, abs=0.0015)

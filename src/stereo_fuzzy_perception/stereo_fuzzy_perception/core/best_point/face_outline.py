@@ -96,6 +96,15 @@ PLAIN_CONVEXITY = 0.85
 """A plain face covers at least this share of its convex hull (the objects' tops are
 convex)."""
 
+MATCHES_BELOW_SHARE = 0.02
+"""A scattered face's height found from both images lies at most MAX_BELOW_MATCHES_M below
+all but this share of its matches' heights..."""
+
+MAX_BELOW_MATCHES_M = 0.005
+"""...[m]: its matches scatter above the top (mismatches, the rim's windows taking in the
+wall) more than below it, yet a height below nearly all of them is a rim found on another
+level (a wall's foot, a plain patch of the table), not this face's top."""
+
 FLAT_SIDE_PX = 5
 """Side of the square over which a match's local grey-level deviation is measured [px]."""
 
@@ -190,7 +199,8 @@ def plain_face_from_image(face: CorrelationArea, image: RectifiedImage,
             whose matched heights are not its top's: the part of the right rectified image the
             matcher read. The face is then taken only with the height where the region's rim
             lies in both images (plain_top_height.py), found at its flattest matches' grey and
-            holding SCATTERED_SEED_SHARE of its matches.
+            holding SCATTERED_SEED_SHARE of its matches, and when that height is not more than
+            MAX_BELOW_MATCHES_M below nearly all of the face's matches.
         max_height_m: Highest top searched for in both images [m].
 
     Returns:
@@ -231,6 +241,9 @@ def plain_face_from_image(face: CorrelationArea, image: RectifiedImage,
                                     tolerance, image, right_image, left, right,
                                     world_from_camera, face.surface, max_height_m)
         if measured is None:
+            return None
+        lowest = float(np.quantile(face.surface.heights(face.xyz_world.T), MATCHES_BELOW_SHARE))
+        if measured.height_m < lowest - MAX_BELOW_MATCHES_M:
             return None
         face = dataclasses.replace(face, top_height=measured.height_m)
     whole = face_within(face, hull.astype(float) + low + (image.x, image.y),

@@ -96,6 +96,16 @@ MIN_RISE = MIN_MARGIN
 """At a scattered face's matched height the rim's memberships correlate at least this much
 better than at the surface's: the plain region stands there, not on the surface."""
 
+HEIGHT_CHECK_M = 0.02
+"""The rim's alignment at a scattered face's matched height is compared with its alignment at
+every height this far either side of it (in HEIGHT_CHECK_STEP_M steps)..."""
+
+HEIGHT_CHECK_STEP_M = 0.001
+
+MAX_HEIGHT_SHORTFALL = 0.03
+"""...and the region is not taken when some other height aligns better by more than this:
+both images put the rim elsewhere, the matched height is not confirmed."""
+
 PlainOutline = tuple[np.ndarray, float, float]
 """A plain region's outline (K, 2) in the left rectified image [px], its grey and the
 tolerance that found it (_plain_outline)."""
@@ -153,7 +163,9 @@ def plain_top_at_matched_height(face: CorrelationArea, points: MatchedPoints,
     one shows (_without_side_wall), the one whose rim, carried to the right image by the
     face's height, lies on the right image's rim better than carried by the surface's by the
     most is taken at that height, when by at least MIN_RISE: the region stands there, it is
-    not a patch of the surface.
+    not a patch of the surface. Nor is it taken when, uncut, its rim aligns better than at the
+    face's height by MAX_HEIGHT_SHORTFALL at another height within HEIGHT_CHECK_M: the matches
+    agree on a height the images do not.
 
     Args:
         face: CorrelationArea.scattered_face of the refused area, or a face too narrow for
@@ -185,12 +197,20 @@ def plain_top_at_matched_height(face: CorrelationArea, points: MatchedPoints,
                                     face.surface)
         if alignment is not None:
             at_face, at_surface = alignment.scores(np.array([face.top_height, 0.0]))
-            rises.append((at_face - at_surface, top))
+            rises.append((at_face - at_surface, top, alignment, at_face, top is outline))
     if not rises:
         return None
-    rise, outline = max(rises, key=lambda item: item[0])
+    rise, outline, alignment, at_face, whole = max(rises, key=lambda item: item[0])
     if rise < MIN_RISE:
         return None
+    if whole:
+        # A region cut above its foot has one edge that is no rim in the image: its alignment
+        # peaks off the top's height, and only an uncut region's says where the top is.
+        around = face.top_height + np.arange(-HEIGHT_CHECK_M, HEIGHT_CHECK_M + 1e-9,
+                                             HEIGHT_CHECK_STEP_M)
+        elsewhere = float(np.max(alignment.scores(around[around > 0.0])))
+        if elsewhere - at_face > MAX_HEIGHT_SHORTFALL:
+            return None
     return _object_sized_face(base, face.top_height, outline, step, left, right,
                               world_from_camera, config)
 
