@@ -26,6 +26,13 @@ way for a net gain of two is noise, which the totals alone do not show.
 face found too thin at that stride is decided again on the same pair's stride-1 matches
 (second_look_stride_one), taken from the split's stride-1 cache (rendered once if missing).
 
+`--rig-pool-seed N` draws the split's rigs from the pool of seed N instead of the one tuning and
+the evaluation split share (14): 30 rigs that neither ever used, with the split's scene seeds.
+A change chosen on the splits is checked there on rigs it cannot have been shaped by, without
+looking at the evaluation split (benchmarks/EXPERIMENTS.md, twenty-second session).
+
+    nice python benchmarks/rig_tuning.py --per-type 50 --split validation --rig-pool-seed 17
+
 `--by-rig` adds the outcomes of the rigs that resolve depth to at most 1 mm per 0.1 px of
 disparity and of the others (rig_breakdown.py gives the same split of the evaluation run).
 
