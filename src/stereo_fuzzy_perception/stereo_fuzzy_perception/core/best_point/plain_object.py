@@ -101,6 +101,7 @@ HEIGHT_CHECK_M = 0.02
 every height this far either side of it (in HEIGHT_CHECK_STEP_M steps)..."""
 
 HEIGHT_CHECK_STEP_M = 0.001
+"""...[m]..."""
 
 MAX_HEIGHT_SHORTFALL = 0.03
 """...and the region is not taken when some other height aligns better by more than this:
