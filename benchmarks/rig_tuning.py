@@ -351,7 +351,7 @@ def main() -> None:
                              'too thin, as fuzzy_best_point_node does (second_look_stride_one); '
                              "the split's stride-1 matches (cached too) stand for matching again")
     parser.add_argument('--rig-pool-seed', type=int, default=DEFAULT_SETTINGS.rig_pool_seed,
-                        help='draw the split\'s rigs from the pool of this seed instead: rigs '
+                        help="draw the split's rigs from the pool of this seed instead: rigs "
                              'that neither tuning nor the evaluation split used')
     parser.add_argument('--by-rig', action='store_true',
                         help='the outcomes of rigs on either side of 1 mm of depth per 0.1 px '
