@@ -98,10 +98,10 @@ better than at the surface's: the plain region stands there, not on the surface.
 
 HEIGHT_CHECK_M = 0.02
 """The rim's alignment at a scattered face's matched height is compared with its alignment at
-every height this far either side of it (in HEIGHT_CHECK_STEP_M steps)..."""
+the heights up to this far either side of it [m]..."""
 
 HEIGHT_CHECK_STEP_M = 0.001
-"""...[m]..."""
+"""...taken this far apart [m]..."""
 
 MAX_HEIGHT_SHORTFALL = 0.03
 """...and the region is not taken when some other height aligns better by more than this:
