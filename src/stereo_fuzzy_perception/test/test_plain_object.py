@@ -156,6 +156,28 @@ def test_a_plain_patch_on_the_table_is_not_raised_to_a_scattered_faces_height():
                                        CONFIG) is None
 
 
+@pytest.mark.parametrize('refused_face', ['scattered_face', 'face_in_pieces'])
+def test_a_plain_object_that_does_not_hold_the_face_the_matches_found_is_not_taken(
+        refused_face):
+    # The matches found a face (refused for its scatter, or in pieces) where a plain top's rim
+    # would be, and the images show a plain object elsewhere: a plain patch printed on a
+    # textured top is such an object, at the top's height, off its centre.
+    points, left, right, refused = bare_table_matches()
+    face, _, _, _ = scattered_plain_face(Box((0.2, 0.15), 0.04, 0.03), 0.03)
+    images = plain_box_pair(RIG, Box((0.3, 0.05), 0.04, 0.03), top_grey=200.0)[:2]
+    alone = plain_object_from_image(refused, with_images(points, *images), left, right, POSE,
+                                    CONFIG)
+    assert alone is not None and alone.ok  # the object itself is found...
+    with_face = dataclasses.replace(refused, **{refused_face: face})
+    assert plain_object_from_image(with_face, with_images(points, *images), left, right, POSE,
+                                   CONFIG) is None  # ...but it is not the face matched
+    # The face's own plain top holds its rim's matches, and is taken.
+    same = plain_box_pair(RIG, Box((0.2, 0.15), 0.04, 0.03), top_grey=200.0)[:2]
+    held = plain_object_from_image(with_face, with_images(points, *same), left, right, POSE,
+                                   CONFIG)
+    assert held is not None and held.ok
+
+
 def test_a_scattered_face_that_no_plain_region_holds_is_not_taken():
     box = Box((0.2, 0.15), 0.04, 0.03)
     face, points, left, right = scattered_plain_face(box, 0.03)

@@ -19,7 +19,9 @@ after every other look:
    of at least MIN_PEAK, and at least min_object_height_m above the surface (a printed patch
    lies on the surface: its rim aligns at height zero).
 4. Exactly one such face, of an object's size on its top plane, is the object; two or more are
-   not told apart, and none is given.
+   not told apart, and none is given. Where the matches did find a face, refused in pieces or
+   for its scatter, the plain face must hold SCATTERED_SEED_SHARE of its matches: a plain
+   patch printed on a textured top, at the top's height, is not the object they found.
 
 plain_top_at_matched_height looks at a face refused for its scatter, or too narrow for any
 object, the same way: the plain region holding its matches, at the face's matched height when
@@ -140,11 +142,17 @@ def plain_object_from_image(refused: CorrelationArea, points: MatchedPoints,
     outlines, base, step = looked
     if len(outlines) > MAX_FACES:
         return None  # plain patches of an object's shape all over: nothing tells them apart
-    found = [face for face in (
-        _face_at_its_height(outline, level, tolerance, base, step, points, left, right,
-                            world_from_camera, config) for outline, level, tolerance in outlines)
-        if face is not None]
-    return found[0] if len(found) == 1 else None
+    found = [(outline, face) for outline, face in (
+        (outline, _face_at_its_height(outline, level, tolerance, base, step, points, left,
+                                      right, world_from_camera, config))
+        for outline, level, tolerance in outlines) if face is not None]
+    if len(found) != 1:
+        return None
+    outline, face = found[0]
+    matched = refused.face_in_pieces or refused.scattered_face
+    if matched is not None and _share_held(outline, matched) < SCATTERED_SEED_SHARE:
+        return None  # the matches found a face the plain region is not: print on a top
+    return face
 
 
 def plain_top_at_matched_height(face: CorrelationArea, points: MatchedPoints,
