@@ -36,6 +36,11 @@ looking at the evaluation split (benchmarks/EXPERIMENTS.md, twenty-second sessio
 `--by-rig` adds the outcomes of the rigs that resolve depth to at most 1 mm per 0.1 px of
 disparity and of the others (rig_breakdown.py gives the same split of the evaluation run).
 
+`--looks` adds the outcomes of each look at the pair that gave the points (the matches' own
+face, or one of the looks point_selectors.decision_area takes after it was refused:
+correlation_area.LOOK_*) and of each refusal status: where the points within 3 mm and the
+errors come from, look by look.
+
 `--decompose` tells where the error comes from. The matched pixels whose rays meet the true
 top face ("true pixels") and the correlation area's pixels ("area pixels") are each cut with a
 plane (the true top height, or the area's) and their centroid graded: area pixels at the true
@@ -175,6 +180,23 @@ def outcomes_by_resolution(errors: dict[str, float | None], resolutions: dict[in
                          f'{"s" if count > 1 else ""}, {len(group)} scene'
                          f'{"s" if len(group) > 1 else ""}): {counted}')
     return lines
+
+
+def outcomes_by_look(errors: dict[str, float | None], looks: dict[str, str],
+                     tolerance_mm: float) -> list[str]:
+    """Return the outcome counts of the scenes each look at the pair decided (or refused),
+    most scenes first.
+
+    errors: {label: error [mm] or None}; looks: {label: the decision's look
+    (correlation_area.LOOK_*) for a scene given a point, 'refused: <status>' for the others}.
+    """
+    groups: dict[str, dict[str, float | None]] = {}
+    for label, error in errors.items():
+        groups.setdefault(looks[label], {})[label] = error
+    width = max((len(look) for look in groups), default=0)
+    return [f'  {look:{width}s} ({len(group):3d}): {outcome_counts(group, tolerance_mm)}'
+            for look, group in sorted(groups.items(), key=lambda item: (-len(item[1]),
+                                                                       item[0]))]
 
 
 def changed_outcomes(before: dict[str, float | None], after: dict[str, float | None],
@@ -356,6 +378,9 @@ def main() -> None:
     parser.add_argument('--by-rig', action='store_true',
                         help='the outcomes of rigs on either side of 1 mm of depth per 0.1 px '
                              '(rig_breakdown.py)')
+    parser.add_argument('--looks', action='store_true',
+                        help='the outcomes of each look at the pair that gave the points '
+                             '(correlation_area.LOOK_*), and of each refusal')
     args = parser.parse_args()
     if not 0 <= args.from_scene < args.per_type:
         parser.error(f'--from-scene {args.from_scene} must be in 0..{args.per_type - 1}')
@@ -410,6 +435,10 @@ def main() -> None:
                 print('\n'.join(outcomes_by_resolution(
                     by_scene, {rig: depth_per_disparity_mm(rig, settings) for rig in rigs},
                     args.tolerance_mm)))
+            if args.looks:
+                looks = {row[1]: (row[3].look if np.isfinite(row[0])
+                                  else f'refused: {row[3].status}') for row in rows}
+                print('\n'.join(outcomes_by_look(by_scene, looks, args.tolerance_mm)))
         if name != 'centroid':
             continue
         rows.sort(key=lambda row: -np.inf if np.isnan(row[0]) else -row[0])

@@ -8,6 +8,7 @@ from benchmarks.rig_tuning import (
     changed_outcomes,
     outcome,
     outcome_counts,
+    outcomes_by_look,
     outcomes_by_resolution,
 )
 
@@ -47,3 +48,16 @@ def test_the_outcomes_are_split_by_the_rigs_depth_resolution():
     assert outcomes_by_resolution({'seed 1 rig 3 top 40 px wood': 1.0}, {3: 0.5}, 3.0) == [
         '  rigs at most 1 mm per 0.1 px (1 rig, 1 scene): '
         'within 1, <= 10 mm 0, > 10 mm 0, no point 0']
+
+
+def test_the_outcomes_are_split_by_the_look_that_decided_each_scene():
+    errors = {'a': 1.0, 'b': 4.0, 'c': None, 'd': 2.0, 'e': 12.0}
+    looks = {'a': 'matches', 'b': 'matches', 'c': 'refused: no_object', 'd': 'matches',
+             'e': 'plain object in the image'}
+    lines = outcomes_by_look(errors, looks, 3.0)
+    # most scenes first, ties by name; the names padded to one column
+    assert lines == [
+        '  matches                   (  3): within 2, <= 10 mm 1, > 10 mm 0, no point 0',
+        '  plain object in the image (  1): within 0, <= 10 mm 0, > 10 mm 1, no point 0',
+        '  refused: no_object        (  1): within 0, <= 10 mm 0, > 10 mm 0, no point 1']
+    assert outcomes_by_look({}, {}, 3.0) == []

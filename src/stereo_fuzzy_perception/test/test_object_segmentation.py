@@ -11,6 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import special
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
+    LOOK_MATCHES,
+    LOOK_TEXTURED_REGION,
     NO_OBJECT,
     STATUS_OK,
     TOO_FEW_POINTS,
@@ -161,6 +163,7 @@ def test_a_face_smaller_in_the_image_than_any_object_is_refused(side_m, refused)
         assert area.status == NO_OBJECT and 'less than any object' in area.reason, area.reason
     else:
         assert area.status == STATUS_OK, area.reason
+        assert area.look == LOOK_MATCHES
 
 @settings(max_examples=30, deadline=None)
 @given(rig=st.sampled_from(sorted(RIGS)), stride=st.sampled_from([1, 3]),
@@ -449,6 +452,7 @@ def test_a_box_refused_with_the_tables_mismatches_is_found_in_the_image(stride):
     assert not first.texture_tried, 'a region of the grid stood out: the texture is still to see'
     area = decision_area(points, *rectified_pair(rig), pose, DEFAULTS)
     assert area.status == STATUS_OK, area.reason
+    assert area.look == LOOK_TEXTURED_REGION  # the look that gave it, for benchmarks and logs
     assert area.top_height == pytest.approx(0.04, abs=0.001)
     assert centre_error_m(area, box) < 0.002
     assert find_textured_area(dataclasses.replace(points, left_image=None), pose, DEFAULTS,

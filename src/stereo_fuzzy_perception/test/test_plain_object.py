@@ -8,6 +8,7 @@ import pytest
 from grid_scenes import TILTED_RIG as RIG
 from grid_scenes import Box, grid_matches, plain_box_pair
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
+    LOOK_PLAIN_OBJECT,
     NO_OBJECT,
     OUTLINE_IMAGE,
     AreaConfig,
@@ -61,6 +62,7 @@ def test_step_one_gives_a_plain_disc_its_face_when_nothing_stands_out():
     area = decision_area(with_images(points, left_image, right_image), left, right, POSE,
                          CONFIG)
     assert area.ok, area.reason
+    assert area.look == LOOK_PLAIN_OBJECT
     assert np.linalg.norm(face_centre(area) - [*disc.centre_xy, 0.005]) < 0.002
     # Without the right image there is no height to take it at: the refusal stands.
     alone = decision_area(with_images(points, left_image, None), left, right, POSE, CONFIG)

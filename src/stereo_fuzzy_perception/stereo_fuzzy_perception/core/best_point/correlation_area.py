@@ -65,6 +65,16 @@ NO_RULE_FIRED = 'no_rule_fired'
 OUTLINE_MATCHES = 'matches'
 OUTLINE_IMAGE = 'image'
 
+LOOK_MATCHES = 'matches'
+LOOK_PLAIN_FACE = 'plain face from the image'
+LOOK_FACE_AT_MODE = 'face at its mode'
+LOOK_PIECES_OUTLINED = 'pieces outlined from the image'
+LOOK_TEXTURED_REGION = 'textured region of the image'
+LOOK_PLAIN_OBJECT = 'plain object in the image'
+LOOK_PLAIN_TOP_AT_MATCHED_HEIGHT = 'plain top at its matched height'
+"""Which look at the pair gave the face (CorrelationArea.look, point_selectors.decision_area):
+the matches' own face, or a look after the matches' face was refused."""
+
 WIDER_SQUARE = 2.0
 """A pair where nothing stands out as an object over squares of smoothing_px is looked at
 again over squares this many times as wide (plus a pixel, so that the side stays odd)."""
@@ -269,6 +279,8 @@ class CorrelationArea:
         texture_tried: Refused with no region of the grid standing out, after the left
             image's textured regions were looked at too: find_textured_area would find
             nothing more.
+        look: Which look at the pair gave the face (LOOK_*): the matches' own, or one that
+            point_selectors.decision_area took after the matches' face was refused.
     """
 
     status: str
@@ -291,6 +303,7 @@ class CorrelationArea:
     scattered_face: CorrelationArea | None = None
     face_at_mode: CorrelationArea | None = None
     texture_tried: bool = False
+    look: str = LOOK_MATCHES
 
     def point_weights(self) -> np.ndarray:
         """Return the points' weights (ones when none were given)."""

@@ -28,6 +28,13 @@ import numpy as np
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     ASSUMED_SURFACE,
     DEGENERATE_AREA,
+    LOOK_FACE_AT_MODE,
+    LOOK_MATCHES,
+    LOOK_PIECES_OUTLINED,
+    LOOK_PLAIN_FACE,
+    LOOK_PLAIN_OBJECT,
+    LOOK_PLAIN_TOP_AT_MATCHED_HEIGHT,
+    LOOK_TEXTURED_REGION,
     MIN_OBJECT_AREA_PX,
     NO_OBJECT,
     NO_POINTS,
@@ -156,6 +163,7 @@ class BestPointDecision:
         area_points_world: (M, 3) the correlation area's points in `world` [m] (for markers).
         surface: The work surface measured from the points, and their disparity noise.
         object_height_sigmas: Median height of the object's region in sigmas of its noise.
+        look: Which look at the pair gave the face (correlation_area.LOOK_*).
     """
 
     selector: str
@@ -187,6 +195,7 @@ class BestPointDecision:
     area_points_world: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     surface: SurfacePlane = ASSUMED_SURFACE
     object_height_sigmas: float = math.nan
+    look: str = LOOK_MATCHES
 
     @property
     def has_best_point(self) -> bool:
@@ -289,6 +298,7 @@ class BestPointChooser:
         decision.clusters_found, decision.points_used = area.clusters_found, area.points_used
         decision.top_height = area.top_height
         decision.area_points_world = area.xyz_world
+        decision.look = area.look
         if not area.ok:
             return self._refuse(decision, area.status, area.reason)
         areas = split_into_areas(area, principal_point(left), principal_point(right))
@@ -431,47 +441,49 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
             # a face in pieces keeps its matches' height: the rim's matches that are there
             # lie on the top
             pieces = area.face_in_pieces
-            area = (plain_face_from_image(pieces, points.left_image, left, right,
-                                          world_from_camera, config.min_points,
-                                          config.max_object_across_m)
-                    or _face_at_mode(area, points.left_image, left, right, world_from_camera,
-                                     config.min_points)
-                    or _outlined_pieces(pieces, points.left_image, left, right,
-                                        world_from_camera, config)
+            area = (_looked(LOOK_PLAIN_FACE, plain_face_from_image(
+                        pieces, points.left_image, left, right, world_from_camera,
+                        config.min_points, config.max_object_across_m))
+                    or _looked(LOOK_FACE_AT_MODE, _face_at_mode(
+                        area, points.left_image, left, right, world_from_camera,
+                        config.min_points))
+                    or _looked(LOOK_PIECES_OUTLINED, _outlined_pieces(
+                        pieces, points.left_image, left, right, world_from_camera, config))
                     or area)
         elif area.scattered_face is not None and points.right_image is not None:
             # a scattered face's matched heights are not its top's: the height must come from
             # where the plain region lies in both images
-            area = plain_face_from_image(
+            area = _looked(LOOK_PLAIN_FACE, plain_face_from_image(
                 area.scattered_face, points.left_image, left, right, world_from_camera,
                 config.min_points, config.max_object_across_m, points.right_image,
-                config.max_object_height_m) or area
+                config.max_object_height_m)) or area
         if not area.ok and area.status != NO_POINTS and not area.texture_tried and (
                 area.status not in FACE_TOO_THIN or _matches_step(points) <= 1):
             # A textured object on a plain or sparsely marked table can be found with the
             # table's mismatches around it, and refused for them.
             textured = find_textured_area(points, world_from_camera, config, shift)
             if textured is not None:
-                area = face_from_image(textured, points.left_image, left, right,
-                                       world_from_camera, config.min_points) or textured
+                area = replace(face_from_image(textured, points.left_image, left, right,
+                                               world_from_camera, config.min_points)
+                               or textured, look=LOOK_TEXTURED_REGION)
         if not area.ok and points.right_image is not None:
             # A plain top on a textured surface is matched only along its rim, and a low one
             # stands out of nothing; the image still shows it, both images its height.
-            area = plain_object_from_image(area, points, left, right, world_from_camera,
-                                           config) or area
+            area = _looked(LOOK_PLAIN_OBJECT, plain_object_from_image(
+                area, points, left, right, world_from_camera, config)) or area
         if not area.ok and scattered is not None and points.right_image is not None:
             # Last, a scattered face whose top is plain: the plain region holding it, at its
             # matched height when both images put the region's rim there.
-            area = plain_top_at_matched_height(scattered, points, left, right,
-                                               world_from_camera, config) or area
+            area = _looked(LOOK_PLAIN_TOP_AT_MATCHED_HEIGHT, plain_top_at_matched_height(
+                scattered, points, left, right, world_from_camera, config)) or area
     if area.ok and config.min_object_across_m > 0.0:
         width = width_m(area.xyz_world[:, :2])
         if (width < config.min_object_across_m and config.outline_from_image
                 and points.right_image is not None):
             # A plain top whose matches are one arc of its rim: the plain region the arc
             # bounds, at the arc's height when both images put the region there.
-            whole = plain_top_at_matched_height(area, points, left, right, world_from_camera,
-                                                config)
+            whole = _looked(LOOK_PLAIN_TOP_AT_MATCHED_HEIGHT, plain_top_at_matched_height(
+                area, points, left, right, world_from_camera, config))
             if whole is not None:
                 area, width = whole, width_m(whole.xyz_world[:, :2])
         if width < config.min_object_across_m:
@@ -496,6 +508,11 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
         area = low_face_from_appearance(area, points.left_image, left, right,
                                         world_from_camera, config.min_points) or area
     return area
+
+
+def _looked(look: str, area: CorrelationArea | None) -> CorrelationArea | None:
+    """Return the area a look at the pair gave, marked with that look (LOOK_*), or None."""
+    return None if area is None else replace(area, look=look)
 
 
 def _face_at_mode(area: CorrelationArea, image: RectifiedImage, left: CameraCalibration,
