@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from grid_scenes import TILTED_RIG as RIG
 from grid_scenes import Box, grid_matches, plain_box_pair
+from stereo_fuzzy_perception.core.best_point import plain_object
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     LOOK_PLAIN_OBJECT,
     NO_OBJECT,
@@ -14,7 +15,9 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     AreaConfig,
     find_correlation_area,
 )
+from stereo_fuzzy_perception.core.best_point.face_outline import plain_face_from_image
 from stereo_fuzzy_perception.core.best_point.plain_object import (
+    plain_face_without_side_wall,
     plain_object_from_image,
     plain_top_at_matched_height,
 )
@@ -141,6 +144,43 @@ def test_a_scattered_plain_face_is_taken_at_its_matched_height_where_both_images
     assert found is not None and found.ok
     assert found.top_height == face.top_height
     assert np.linalg.norm(face_centre(found) - [*box.centre_xy, 0.0305]) < 0.002
+
+
+@pytest.mark.parametrize('wall_grey', [200.0, 70.0])
+def test_a_plain_face_taken_whole_loses_a_side_wall_of_its_grey(wall_grey):
+    # The face taken whole from the plain region at its matched height: with walls of the
+    # top's grey the region reaches down the nearer walls to the table, and its pixels cut
+    # with the top's plane lie beyond the rim toward the cameras; cut above its own foot it is
+    # the top. With walls of another grey the region is the top alone, and stays whole.
+    box = Box((0.2, 0.15), 0.04, 0.03)
+    face, points, left, right = scattered_plain_face(box, 0.03)
+    left_image, right_image = plain_box_pair(RIG, box, top_grey=200.0, wall_grey=wall_grey)[:2]
+    whole = plain_face_from_image(face, left_image, left, right, POSE, CONFIG.min_points,
+                                  CONFIG.max_object_across_m)
+    assert whole is not None and whole.ok
+    cut = plain_face_without_side_wall(whole, with_images(points, left_image, right_image),
+                                       left, right, POSE, CONFIG)
+    true_centre = [*box.centre_xy, 0.03]
+    if wall_grey == 200.0:
+        assert np.linalg.norm(face_centre(whole) - true_centre) > 0.004
+        assert np.linalg.norm(face_centre(cut) - true_centre) < 0.002
+    else:
+        assert cut is whole
+        assert np.linalg.norm(face_centre(whole) - true_centre) < 0.002
+
+
+def test_a_cut_that_takes_more_than_a_wall_strip_is_not_made(monkeypatch):
+    # The box's walls of the top's grey take a third of its plain region (the top keeps 0.67
+    # of it): a cut keeping less than MIN_KEPT_SHARE is not taken for a wall's.
+    box = Box((0.2, 0.15), 0.04, 0.03)
+    face, points, left, right = scattered_plain_face(box, 0.03)
+    left_image, right_image = plain_box_pair(RIG, box, top_grey=200.0, wall_grey=200.0)[:2]
+    whole = plain_face_from_image(face, left_image, left, right, POSE, CONFIG.min_points,
+                                  CONFIG.max_object_across_m)
+    assert whole is not None
+    monkeypatch.setattr(plain_object, 'MIN_KEPT_SHARE', 0.7)
+    assert plain_face_without_side_wall(whole, with_images(points, left_image, right_image),
+                                        left, right, POSE, CONFIG) is whole
 
 
 def test_a_plain_patch_on_the_table_is_not_raised_to_a_scattered_faces_height():

@@ -68,6 +68,7 @@ from stereo_fuzzy_perception.core.best_point.object_segmentation import (
     width_m,
 )
 from stereo_fuzzy_perception.core.best_point.plain_object import (
+    plain_face_without_side_wall,
     plain_object_from_image,
     plain_top_at_matched_height,
 )
@@ -428,7 +429,8 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     passed it all and stands low has its rim refined from its appearance (face_appearance.py).
     A face refused for its scatter, and a sliver, may be a plain top's: the plain region of
     the image that holds it is taken at its height when both images put it there
-    (plain_object.plain_top_at_matched_height).
+    (plain_object.plain_top_at_matched_height). A face taken whole from the image's plain
+    region loses a side wall of its grey that joined it (plain_face_without_side_wall).
     """
     shift = disparity_shift(left, right)
     area = find_correlation_area(points, world_from_camera, config, shift)
@@ -441,9 +443,10 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
             # a face in pieces keeps its matches' height: the rim's matches that are there
             # lie on the top
             pieces = area.face_in_pieces
-            area = (_looked(LOOK_PLAIN_FACE, plain_face_from_image(
+            area = (_plain_face(plain_face_from_image(
                         pieces, points.left_image, left, right, world_from_camera,
-                        config.min_points, config.max_object_across_m))
+                        config.min_points, config.max_object_across_m), points, left, right,
+                        world_from_camera, config)
                     or _looked(LOOK_FACE_AT_MODE, _face_at_mode(
                         area, points.left_image, left, right, world_from_camera,
                         config.min_points))
@@ -453,10 +456,11 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
         elif area.scattered_face is not None and points.right_image is not None:
             # a scattered face's matched heights are not its top's: the height must come from
             # where the plain region lies in both images
-            area = _looked(LOOK_PLAIN_FACE, plain_face_from_image(
+            area = _plain_face(plain_face_from_image(
                 area.scattered_face, points.left_image, left, right, world_from_camera,
                 config.min_points, config.max_object_across_m, points.right_image,
-                config.max_object_height_m)) or area
+                config.max_object_height_m), points, left, right, world_from_camera,
+                config) or area
         if not area.ok and area.status != NO_POINTS and not area.texture_tried and (
                 area.status not in FACE_TOO_THIN or _matches_step(points) <= 1):
             # A textured object on a plain or sparsely marked table can be found with the
@@ -508,6 +512,17 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
         area = low_face_from_appearance(area, points.left_image, left, right,
                                         world_from_camera, config.min_points) or area
     return area
+
+
+def _plain_face(found: CorrelationArea | None, points: MatchedPoints,
+                left: CameraCalibration, right: CameraCalibration,
+                world_from_camera: np.ndarray, config: AreaConfig) -> CorrelationArea | None:
+    """Return a face taken whole from the image's plain region (LOOK_PLAIN_FACE), without
+    a side wall of its grey where one joined it (plain_face_without_side_wall), or None."""
+    if found is None:
+        return None
+    return _looked(LOOK_PLAIN_FACE, plain_face_without_side_wall(
+        found, points, left, right, world_from_camera, config))
 
 
 def _looked(look: str, area: CorrelationArea | None) -> CorrelationArea | None:
