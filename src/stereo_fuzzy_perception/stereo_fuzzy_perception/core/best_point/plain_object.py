@@ -115,9 +115,8 @@ both images put the rim elsewhere, the matched height is not confirmed."""
 MIN_KEPT_SHARE = 0.6
 """A plain face taken whole from the image is cut to its part above its own foot only when
 the part keeps at least this share of its pixels: a side wall's image is a strip along the
-face. On the rendered tuning splits and pools the cuts that mended a point kept 0.77-0.88 of
-the face, those that broke one 0.32-0.56 (printed, wood and fabric tops, whose plain region is
-no plain top); the ray-cast box of test_plain_object.py keeps 0.67."""
+face, and a cut that takes more is most often of a printed, wood or fabric top whose plain
+region is no plain top (the shares measured: src/stereo_fuzzy_perception/README.md, step 1)."""
 
 PlainOutline = tuple[np.ndarray, float, float]
 """A plain region's outline (K, 2) in the left rectified image [px], its grey and the
@@ -267,9 +266,7 @@ def plain_face_without_side_wall(face: CorrelationArea, points: MatchedPoints,
     columns = np.clip(np.round(face.u_left).astype(int) - image.x, 0, smooth.shape[1] - 1)
     rows = np.clip(np.round(face.v_left).astype(int) - image.y, 0, smooth.shape[0] - 1)
     greys = smooth[rows, columns]
-    level = float(np.median(greys))
-    spread = MAD_TO_SIGMA * float(np.median(np.abs(greys - level)))
-    tolerance = max(PLAIN_TOLERANCE_SIGMAS * spread, PLAIN_TOLERANCE_GREY * grey_level)
+    level, tolerance = _grey_and_tolerance(greys, grey_level)
     outline = cv2.convexHull(np.column_stack([face.u_left, face.v_left]).astype(
         np.float32)).reshape(-1, 2).astype(float)
     step = grid_step(points.u_left[finite], points.v_left[finite])
@@ -393,9 +390,7 @@ def _plain_outline(smooth: np.ndarray, rows: np.ndarray, columns: np.ndarray,
     image = points.left_image
     assert image is not None  # plain_object_from_image checked
     greys = smooth[rows, columns]
-    level = float(np.median(greys))
-    spread = MAD_TO_SIGMA * float(np.median(np.abs(greys - level)))
-    tolerance = max(PLAIN_TOLERANCE_SIGMAS * spread, PLAIN_TOLERANCE_GREY * grey_level)
+    level, tolerance = _grey_and_tolerance(greys, grey_level)
     reach = int(max(np.ptp(rows), np.ptp(columns))) + SEED_MARGIN_PX
     low = np.maximum([columns.min() - reach, rows.min() - reach], 0)
     high = np.minimum([columns.max() + reach + 1, rows.max() + reach + 1], smooth.shape[::-1])
@@ -415,6 +410,15 @@ def _plain_outline(smooth: np.ndarray, rows: np.ndarray, columns: np.ndarray,
             or across_m(smallest.xyz_world[:, :2]) > config.max_object_across_m):
         return None
     return outline, level, tolerance
+
+
+def _grey_and_tolerance(greys: np.ndarray, grey_level: float) -> tuple[float, float]:
+    """Return a plain region's grey (the median of its pixels' greys) and the tolerance around
+    it that holds its pixels (PLAIN_TOLERANCE_SIGMAS of their spread, at least
+    PLAIN_TOLERANCE_GREY grey levels of 255 in units of grey_level)."""
+    level = float(np.median(greys))
+    spread = MAD_TO_SIGMA * float(np.median(np.abs(greys - level)))
+    return level, max(PLAIN_TOLERANCE_SIGMAS * spread, PLAIN_TOLERANCE_GREY * grey_level)
 
 
 def _face_at_its_height(outline: np.ndarray, level: float, tolerance: float,
