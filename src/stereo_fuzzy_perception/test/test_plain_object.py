@@ -169,18 +169,25 @@ def test_a_plain_face_taken_whole_loses_a_side_wall_of_its_grey(wall_grey):
         assert np.linalg.norm(face_centre(whole) - true_centre) < 0.002
 
 
-def test_a_cut_that_takes_more_than_a_wall_strip_is_not_made(monkeypatch):
+@pytest.mark.parametrize('kept_share', [0.6, 0.7])
+def test_a_plain_region_that_is_mostly_wall_gives_no_face(monkeypatch, kept_share):
     # The box's walls of the top's grey take a third of its plain region (the top keeps 0.67
-    # of it): a cut keeping less than MIN_KEPT_SHARE is not taken for a wall's.
+    # of it). Where that is a wall's strip (MIN_KEPT_SHARE 0.6) the face is cut to the top;
+    # where it is more than a strip (0.7), the region is mostly wall and gives no face, not
+    # the whole region, whose centre lies beyond the top's rim.
     box = Box((0.2, 0.15), 0.04, 0.03)
     face, points, left, right = scattered_plain_face(box, 0.03)
     left_image, right_image = plain_box_pair(RIG, box, top_grey=200.0, wall_grey=200.0)[:2]
     whole = plain_face_from_image(face, left_image, left, right, POSE, CONFIG.min_points,
                                   CONFIG.max_object_across_m)
     assert whole is not None
-    monkeypatch.setattr(plain_object, 'MIN_KEPT_SHARE', 0.7)
-    assert plain_face_without_side_wall(whole, with_images(points, left_image, right_image),
-                                        left, right, POSE, CONFIG) is whole
+    monkeypatch.setattr(plain_object, 'MIN_KEPT_SHARE', kept_share)
+    cut = plain_face_without_side_wall(whole, with_images(points, left_image, right_image),
+                                       left, right, POSE, CONFIG)
+    if kept_share == 0.6:
+        assert cut is not None and cut is not whole
+    else:
+        assert cut is None
 
 
 def test_a_plain_patch_on_the_table_is_not_raised_to_a_scattered_faces_height():

@@ -28,7 +28,8 @@ object, the same way: the plain region holding its matches, at the face's matche
 both images confirm it.
 
 plain_face_without_side_wall cuts a plain face taken whole from the image to its part above its
-own foot, where a side wall of the top's grey joined it, as plain_top_at_matched_height does.
+own foot, where a side wall of the top's grey joined it, as plain_top_at_matched_height does; a
+region that is mostly such a wall gives no face.
 
 ROS-free: numpy, scipy and OpenCV.
 """
@@ -115,8 +116,9 @@ both images put the rim elsewhere, the matched height is not confirmed."""
 MIN_KEPT_SHARE = 0.6
 """A plain face taken whole from the image is cut to its part above its own foot only when
 the part keeps at least this share of its pixels: a side wall's image is a strip along the
-face, and a cut that takes more is most often of a printed, wood or fabric top whose plain
-region is no plain top (the shares measured: src/stereo_fuzzy_perception/README.md, step 1)."""
+face. A region whose part above its foot keeps less is mostly wall, or of a printed, wood or
+fabric top whose plain region is no plain top: it gives no face (the shares and outcomes
+measured: src/stereo_fuzzy_perception/README.md, step 1)."""
 
 PlainOutline = tuple[np.ndarray, float, float]
 """A plain region's outline (K, 2) in the left rectified image [px], its grey and the
@@ -236,17 +238,19 @@ def plain_top_at_matched_height(face: CorrelationArea, points: MatchedPoints,
 def plain_face_without_side_wall(face: CorrelationArea, points: MatchedPoints,
                                  left: CameraCalibration, right: CameraCalibration,
                                  world_from_camera: np.ndarray, config: AreaConfig
-                                 ) -> CorrelationArea:
+                                 ) -> CorrelationArea | None:
     """Return a plain face taken whole from the image (face_outline.plain_face_from_image) cut
-    to its part above its own foot where a side wall of its grey joined it, or the face as
-    it is.
+    to its part above its own foot where a side wall of its grey joined it, the face as it is
+    where none did, or None where the region is mostly wall.
 
     The plain region holding a top whose walls are of its grey reaches down the nearer walls
     to the surface, and the face's pixels cut with the top's plane lie beyond its rim toward
     the cameras there. The face is cut as a scattered plain top is (_without_side_wall: only
     where the rest of its rim aligns better at the surface's height than at the face's),
     with the face's grey and tolerance taken from its pixels, and only when the part keeps
-    MIN_KEPT_SHARE of them.
+    MIN_KEPT_SHARE of them. When it keeps less (or is no object's face), the region is mostly
+    wall, or a textured top's plain patch: the image cannot tell the top there, and the
+    face, whole, would lie beyond its rim.
 
     Args:
         face: The plain face, its points the region's pixels on the matches' grid.
@@ -277,7 +281,7 @@ def plain_face_without_side_wall(face: CorrelationArea, points: MatchedPoints,
     cut = _object_sized_face(face, face.top_height, top, step, left, right, world_from_camera,
                              config)
     if cut is None or len(cut.u_left) < MIN_KEPT_SHARE * len(face.u_left):
-        return face
+        return None
     return cut
 
 

@@ -430,7 +430,8 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     A face refused for its scatter, and a sliver, may be a plain top's: the plain region of
     the image that holds it is taken at its height when both images put it there
     (plain_object.plain_top_at_matched_height). A face taken whole from the image's plain
-    region loses a side wall of its grey that joined it (plain_face_without_side_wall).
+    region loses a side wall of its grey that joined it, and one that is mostly wall is no
+    face (plain_face_without_side_wall).
     """
     shift = disparity_shift(left, right)
     area = find_correlation_area(points, world_from_camera, config, shift)
@@ -518,7 +519,8 @@ def _plain_face(found: CorrelationArea | None, points: MatchedPoints,
                 left: CameraCalibration, right: CameraCalibration,
                 world_from_camera: np.ndarray, config: AreaConfig) -> CorrelationArea | None:
     """Return a face taken whole from the image's plain region (LOOK_PLAIN_FACE), without
-    a side wall of its grey where one joined it (plain_face_without_side_wall), or None."""
+    a side wall of its grey where one joined it (plain_face_without_side_wall), or None (no
+    plain region, or one that is mostly wall)."""
     if found is None:
         return None
     return _looked(LOOK_PLAIN_FACE, plain_face_without_side_wall(
