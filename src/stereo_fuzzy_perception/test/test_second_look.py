@@ -22,7 +22,10 @@ from stereo_fuzzy_perception.core.best_point.point_selectors import (
     BestPointChooser,
     BestPointDecision,
 )
-from stereo_fuzzy_perception.core.best_point.second_look import decide_with_second_look
+from stereo_fuzzy_perception.core.best_point.second_look import (
+    SECOND_LOOK_FEWEST_POINTS,
+    decide_with_second_look,
+)
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.matched_points import RectifiedImage
 from stereo_fuzzy_perception.core.matching.matched_again import matched_again
@@ -31,6 +34,9 @@ from stereo_fuzzy_perception.core.rig_geometry import StereoRig
 
 # Training scene 19 (seed 1000019): a 20 mm box with a printed top, 28 px across, on rig 4.
 THIN_AT_STRIDE_3 = ('train', 5, 19)
+# Training scene 65 (seed 1000065): a cylinder with a wood top 32 px across, on rig 16, whose
+# face keeps fewer than SECOND_LOOK_FEWEST_POINTS matches at stride 3.
+FEW_AT_STRIDE_3 = ('train', 50, 65)
 
 
 @dataclass(frozen=True)
@@ -41,17 +47,20 @@ class Matched:
     chooser: BestPointChooser
 
 
-@pytest.fixture(scope='module')
-def matched() -> Matched:
+def _matched(split: str, per_type: int, index: int) -> Matched:
     from stereo_fuzzy_perception.simulation.distribution_source import match_scene
     from stereo_fuzzy_perception.simulation.scene_distribution import split_plan
 
-    split, per_type, index = THIN_AT_STRIDE_3
     scene = match_scene(split_plan(split, per_type)[index].draw(), (1, 3))
     stride_3 = scene.matched[3]
     chooser = replace(BestPointChooser.create('fuzzy_fitted', AreaConfig(), StereoRig()),
                       world_from_camera=stride_3.rig.world_from_left_camera())
     return Matched(scene.matched[1], stride_3, scene.matcher, chooser)
+
+
+@pytest.fixture(scope='module')
+def matched() -> Matched:
+    return _matched(*THIN_AT_STRIDE_3)
 
 
 def _columns(points) -> np.ndarray:
@@ -153,3 +162,55 @@ def test_a_pair_matched_in_a_region_is_matched_again_in_it():
     again = matched_again(s3.points, StereoCalibration(s3.left, s3.right), coarse.matcher, 1)
     np.testing.assert_array_equal(_columns(again), _columns(fine.matched[1].points))
     assert len(again) > 5 * len(s3.points)
+
+
+def test_a_face_of_few_matches_at_stride_3_gets_its_stride_one_point():
+    # Its outline starts from the hull of a few dozen matches and the point lies a centimetre
+    # off; at stride 1 the same top holds nine times as many.
+    few = _matched(*FEW_AT_STRIDE_3)
+    s1, s3, chooser = few.stride_1, few.stride_3, few.chooser
+    first = chooser.decide(s3.points, s3.left, s3.right)
+    assert first.status == STATUS_OK and first.points_used < SECOND_LOOK_FEWEST_POINTS
+    looked = decide_with_second_look(chooser, s3.points, s3.left, s3.right, few.matcher, 3)
+    assert looked.looked
+    np.testing.assert_array_equal(looked.decision.best_point_world,
+                                  chooser.decide(s1.points, s1.left, s1.right).best_point_world)
+    error = np.linalg.norm(looked.decision.best_point_world - s3.target_world)
+    assert error < 0.003, f'{1000 * error:.1f} mm from the top-face centre'
+
+
+class _Scripted:
+    """A chooser that gives its decisions in turn."""
+
+    def __init__(self, *decisions: BestPointDecision) -> None:
+        self.decisions, self.calls = list(decisions), 0
+
+    def decide(self, points, left, right) -> BestPointDecision:
+        self.calls += 1
+        return self.decisions[self.calls - 1]
+
+
+def _point(points_used: int, x: float) -> BestPointDecision:
+    return BestPointDecision('stub', points_used=points_used,
+                             best_point_world=np.array([x, 0.0, 0.0]))
+
+
+@pytest.mark.parametrize('points_used, looks', [(SECOND_LOOK_FEWEST_POINTS - 1, True),
+                                                (SECOND_LOOK_FEWEST_POINTS, False)])
+def test_a_point_on_few_matches_is_looked_at_again(matched, points_used, looks):
+    s3 = matched.stride_3
+    chooser = _Scripted(_point(points_used, 0.1), _point(500, 0.2))
+    looked = decide_with_second_look(chooser, s3.points, s3.left, s3.right,  # type: ignore
+                                     matched.matcher, 3)
+    assert looked.looked == looks and chooser.calls == (2 if looks else 1)
+    assert looked.decision.best_point_world[0] == (0.2 if looks else 0.1)
+
+
+def test_a_point_on_few_matches_stands_when_stride_one_refuses(matched):
+    s3 = matched.stride_3
+    chooser = _Scripted(_point(SECOND_LOOK_FEWEST_POINTS - 1, 0.1),
+                        BestPointDecision('stub', status=UNCERTAIN_TOP, reason='scattered'))
+    looked = decide_with_second_look(chooser, s3.points, s3.left, s3.right,  # type: ignore
+                                     matched.matcher, 3)
+    assert looked.looked and looked.decision.status == STATUS_OK
+    assert looked.decision.best_point_world[0] == 0.1

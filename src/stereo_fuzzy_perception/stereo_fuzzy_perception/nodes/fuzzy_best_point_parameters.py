@@ -12,6 +12,7 @@ from stereo_fuzzy_parameters.world import WorldSettings
 
 from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig
 from stereo_fuzzy_perception.core.best_point.point_selectors import SELECTORS
+from stereo_fuzzy_perception.core.best_point.second_look import SECOND_LOOK_FEWEST_POINTS
 from stereo_fuzzy_perception.nodes.rig_parameters import RigSettings
 
 _AREA = AreaConfig()
@@ -111,9 +112,10 @@ class FuzzyBestPointSettings:
         "for it (its cost: the main README's benchmark table)")
     second_look_stride_one: bool = parameter(
         True, 'When matches of a point_stride above 1 find the object but refuse its top face '
-        'as too thin (too_few_points, uncertain_top), match the pair again at point stride 1 '
-        'from the rectified images and settings that come with them (StereoMatches) and decide '
-        'again: a printed or low-texture top keeps too few matches at a coarse stride. Costs '
+        'as too thin (too_few_points, uncertain_top), or give its point on fewer than '
+        f'{SECOND_LOOK_FEWEST_POINTS} matches, match the pair again at point stride 1 from the '
+        'rectified images and settings that come with them (StereoMatches) and decide again: '
+        'a printed, low-texture or small top keeps too few matches at a coarse stride. Costs '
         'one stride-1 match and decision on those pairs only')
     # --- rig pose: a pose file (static_transform_publisher form), /tf_static, or the chapter's
     # alpha, theta, z0 (+ x0, y0, vergence) converted to the same transform (core/rig_pose.py)

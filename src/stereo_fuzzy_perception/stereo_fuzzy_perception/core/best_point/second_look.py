@@ -5,10 +5,12 @@ face: too few matches on it (`too_few_points`), or too few to tell its scatter f
 wall's (`uncertain_top`). Printed and low-texture tops are matched only in places, and a small
 top keeps a ninth of those places. The same pair at stride 1 often gives a point, so the
 pair is matched again at stride 1 from the rectified parts its matches carry
-(core/matching/matched_again.py) and decided again. Only those two refusals get a second look:
-a pair where no object stands out (`no_object`) is refused at stride 1 as it is at stride 3 on
-most pairs, and where it is not the points were no better (the package README, "A second
-look at point stride 1").
+(core/matching/matched_again.py) and decided again. A face decided on fewer than
+SECOND_LOOK_FEWEST_POINTS matches gets the same second look: its outline starts from the hull
+of a few dozen matches, and on a small top that can put the point a centimetre off. Only
+those get a second look: a pair where no object stands out (`no_object`) is refused at stride 1
+as it is at stride 3 on most pairs, and where it is not the points were no better (the package
+README, "A second look at point stride 1").
 ROS-free.
 """
 
@@ -31,6 +33,12 @@ from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
 SECOND_LOOK_STATUSES = FACE_TOO_THIN
 """Refusals of a face found too thin at a coarse stride: the ones a second look can change."""
 
+SECOND_LOOK_FEWEST_POINTS = 40
+"""A face given a point at a coarse stride on fewer matches than this is decided again at
+stride 1 too, where the same top holds about stride^2 times as many; the stride-1 point is
+taken when there is one (a refusal there leaves the first point: it cost points within 3 mm
+on the tuning splits)."""
+
 
 @dataclass(frozen=True)
 class SecondLook:
@@ -52,7 +60,8 @@ def decide_with_second_look(chooser: BestPointChooser, points: MatchedPoints,
                             threads: int | None = None,
                             at_stride_one: MatchedPoints | None = None) -> SecondLook:
     """Decide on the matches; at a point stride above 1, look again at stride 1 when the face
-    found is refused as too thin (SECOND_LOOK_STATUSES).
+    found is refused as too thin (SECOND_LOOK_STATUSES), or given a point on fewer than
+    SECOND_LOOK_FEWEST_POINTS matches.
 
     Args:
         chooser: The best-point chooser, posed.
@@ -71,7 +80,9 @@ def decide_with_second_look(chooser: BestPointChooser, points: MatchedPoints,
         not fit the rectified images leave the first decision, its reason saying so.
     """
     decision = chooser.decide(points, left, right)
-    if point_stride <= 1 or decision.status not in SECOND_LOOK_STATUSES:
+    few_points = (decision.status == STATUS_OK
+                  and decision.points_used < SECOND_LOOK_FEWEST_POINTS)
+    if point_stride <= 1 or (decision.status not in SECOND_LOOK_STATUSES and not few_points):
         return SecondLook(decision)
     again = at_stride_one
     if again is None:
@@ -87,6 +98,8 @@ def decide_with_second_look(chooser: BestPointChooser, points: MatchedPoints,
     second = chooser.decide(again, left, right)
     if second.status == STATUS_OK:
         return SecondLook(second, looked=True)
+    if few_points:
+        return SecondLook(decision, looked=True)
     return SecondLook(_with_second_reason(decision, second), looked=True)
 
 
