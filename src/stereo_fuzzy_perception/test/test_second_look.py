@@ -81,7 +81,7 @@ def test_a_face_too_thin_at_stride_3_gets_its_stride_one_point(matched):
     first = chooser.decide(s3.points, s3.left, s3.right)
     assert first.status == TOO_FEW_POINTS  # what makes this scene the case
     looked = decide_with_second_look(chooser, s3.points, s3.left, s3.right, matched.matcher, 3)
-    assert looked.looked and looked.decision.status == STATUS_OK
+    assert looked.looked and looked.found and looked.decision.status == STATUS_OK
     at_stride_1 = chooser.decide(s1.points, s1.left, s1.right)
     np.testing.assert_array_equal(looked.decision.best_point_world,
                                   at_stride_1.best_point_world)
@@ -202,7 +202,8 @@ def test_a_point_on_few_matches_is_looked_at_again(matched, points_used, looks):
     chooser = _Scripted(_point(points_used, 0.1), _point(500, 0.2))
     looked = decide_with_second_look(chooser, s3.points, s3.left, s3.right,  # type: ignore
                                      matched.matcher, 3)
-    assert looked.looked == looks and chooser.calls == (2 if looks else 1)
+    assert looked.looked == looks and looked.found == looks
+    assert chooser.calls == (2 if looks else 1)
     assert looked.decision.best_point_world[0] == (0.2 if looks else 0.1)
 
 
@@ -212,5 +213,5 @@ def test_a_point_on_few_matches_stands_when_stride_one_refuses(matched):
                         BestPointDecision('stub', status=UNCERTAIN_TOP, reason='scattered'))
     looked = decide_with_second_look(chooser, s3.points, s3.left, s3.right,  # type: ignore
                                      matched.matcher, 3)
-    assert looked.looked and looked.decision.status == STATUS_OK
+    assert looked.looked and not looked.found and looked.decision.status == STATUS_OK
     assert looked.decision.best_point_world[0] == 0.1

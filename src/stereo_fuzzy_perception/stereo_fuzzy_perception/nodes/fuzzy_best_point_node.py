@@ -295,7 +295,7 @@ class FuzzyBestPointNode(Node):
             decision = looked.decision
             if looked.looked:
                 self.second_looks['looked'] += 1
-                self.second_looks['found'] += decision.status == STATUS_OK
+                self.second_looks['found'] += looked.found
         except Exception as error:  # no input may stop the node; say what happened instead
             self.get_logger().error(f'choosing failed: {error!r}',
                                     throttle_duration_sec=ERROR_THROTTLE_S)

@@ -1,4 +1,5 @@
-"""A second look at point stride 1, for a pair whose object's face is too thin at a coarser one.
+"""A second look at point stride 1, for a pair whose object's face is too thin at a coarser one,
+or decided on few matches there.
 
 At the demo's point_stride 3 the correlation area can find the object and still refuse its top
 face: too few matches on it (`too_few_points`), or too few to tell its scatter from a side
@@ -46,12 +47,14 @@ class SecondLook:
 
     Attributes:
         decision: The decision to publish: the second look's when it gave a point, else the
-            first (its reason then ends with the second look's).
+            first (a refusal's reason then ends with the second look's).
         looked: The pair was matched again at stride 1.
+        found: The decision is the second look's point.
     """
 
     decision: BestPointDecision
     looked: bool = False
+    found: bool = False
 
 
 def decide_with_second_look(chooser: BestPointChooser, points: MatchedPoints,
@@ -97,7 +100,7 @@ def decide_with_second_look(chooser: BestPointChooser, points: MatchedPoints,
             return SecondLook(decision)
     second = chooser.decide(again, left, right)
     if second.status == STATUS_OK:
-        return SecondLook(second, looked=True)
+        return SecondLook(second, looked=True, found=True)
     if few_points:
         return SecondLook(decision, looked=True)
     return SecondLook(_with_second_reason(decision, second), looked=True)
