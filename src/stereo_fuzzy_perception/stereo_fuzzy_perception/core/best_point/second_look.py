@@ -37,8 +37,8 @@ SECOND_LOOK_STATUSES = FACE_TOO_THIN
 SECOND_LOOK_FEWEST_POINTS = 40
 """A face given a point at a coarse stride on fewer matches than this is decided again at
 stride 1 too, where the same top holds about stride^2 times as many; the stride-1 point is
-taken when there is one (a refusal there leaves the first point: it cost points within 3 mm
-on the tuning splits)."""
+taken when there is one, and a refusal there leaves the first point (why, measured: the
+package README, "A second look at point stride 1")."""
 
 
 @dataclass(frozen=True)
