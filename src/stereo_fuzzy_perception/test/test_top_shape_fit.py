@@ -159,16 +159,10 @@ def _area(box, outline, shape):
                            v_left=v_left.astype(float))
 
 
-@pytest.mark.parametrize('box, top_texture, within_m', [
-    (Box((0.21, 0.16), 0.04, 0.03), 0.0, 0.5e-3),
-    (Box((0.21, 0.16), 0.04, 0.03), 20.0, 0.5e-3),
-    (Box((0.19, 0.14), 0.045, 0.02, round=True), 0.0, 0.5e-3),
-    # scored on every second pixel (FULL_RESOLUTION_PX): half of their spacing
-    (Box((0.2, 0.15), 0.075, 0.025), 20.0, 1.0e-3)])
-def test_a_ray_cast_top_is_found_from_a_guess_millimetres_off(box, top_texture, within_m):
-    # both images ray-cast: a plain or textured top on a textured table, its walls plain and
-    # darker; the area the chain would hand over is the top's outline in the left image, its
-    # centre 2-3 mm off
+def _fitted_from_a_guess(box, top_texture):
+    """Return (fit, true centre, guess) for the box ray-cast in both images: a plain or
+    textured top on a textured table, its walls plain and darker; the area the chain would hand
+    over is the top's outline in the left image, its centre 2-3 mm off."""
     left_image, right_image, left, right, outline = plain_box_pair(
         RIG, box, top_grey=200.0, right_gain=0.9, right_offset=12.0, top_texture=top_texture)
     area = _area(box, outline, left_image.pixels.shape)
@@ -177,7 +171,17 @@ def test_a_ray_cast_top_is_found_from_a_guess_millimetres_off(box, top_texture, 
     axes = (0.1, 0.9 * box.size, 0.9 * box.size)
     costs = top_shape_costs(area, left_image, right_image, left, right, POSE, guess, axes)
     assert costs is not None
-    fit = fit_top_shape(costs, guess, axes)
+    return fit_top_shape(costs, guess, axes), truth, guess
+
+
+@pytest.mark.parametrize('box, top_texture, within_m', [
+    (Box((0.21, 0.16), 0.04, 0.03), 0.0, 0.5e-3),
+    (Box((0.21, 0.16), 0.04, 0.03), 20.0, 0.5e-3),
+    (Box((0.19, 0.14), 0.045, 0.02, round=True), 0.0, 0.5e-3),
+    # scored on every second pixel (FULL_RESOLUTION_PX): half of their spacing
+    (Box((0.2, 0.15), 0.075, 0.025), 20.0, 1.0e-3)])
+def test_a_ray_cast_top_is_found_from_a_guess_millimetres_off(box, top_texture, within_m):
+    fit, truth, guess = _fitted_from_a_guess(box, top_texture)
     assert fit.shape == ('disc' if box.round else 'rectangle')
     assert np.hypot(*(fit.centre - truth)) < within_m
     assert fit.drop_per_px >= top_shape_fit.MIN_DROP
@@ -188,16 +192,7 @@ def test_a_ray_cast_top_is_found_from_a_guess_millimetres_off(box, top_texture, 
 def test_a_disc_of_the_lowest_objects_height_is_fitted_on_a_near_rig():
     # a 5 mm disc stands about 0.75 px out of the table on this rig: less than a pixel, and
     # still told from the table pixel by pixel
-    box = Box((0.19, 0.14), 0.045, 0.005, round=True)
-    left_image, right_image, left, right, outline = plain_box_pair(
-        RIG, box, top_grey=200.0, right_gain=0.9, right_offset=12.0, top_texture=20.0)
-    area = _area(box, outline, left_image.pixels.shape)
-    truth = np.array(box.centre_xy)
-    guess = truth + np.array([0.002, -0.0025])
-    axes = (0.1, 0.9 * box.size, 0.9 * box.size)
-    costs = top_shape_costs(area, left_image, right_image, left, right, POSE, guess, axes)
-    assert costs is not None
-    fit = fit_top_shape(costs, guess, axes)
+    fit, truth, _ = _fitted_from_a_guess(Box((0.19, 0.14), 0.045, 0.005, round=True), 20.0)
     assert fit.shape == 'disc'
     assert np.hypot(*(fit.centre - truth)) < 0.5e-3
 
