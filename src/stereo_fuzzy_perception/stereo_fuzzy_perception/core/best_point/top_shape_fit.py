@@ -64,9 +64,9 @@ MIN_FAR_PIXELS = 200
 
 MIN_PARALLAX_PX = 0.5
 """A top whose plane and the surface's differ by less in the right image is not fitted: below
-half a pixel the labels top and surface hardly differ in cost. A 5 mm disc on a near rig stands
-0.6-1 px out, and its fit moves its point closer as often as a taller top's does
-(benchmarks/EXPERIMENTS.md, twenty-fifth session)."""
+half a pixel the labels top and surface hardly differ in cost. Above it the lowest objects'
+tops on near rigs are fitted too (why, measured: the package README, "The top fitted to both
+images")."""
 
 SAMPLES = 30
 """Heights at which the side wall's cost is taken, from a tenth of the top's height below it
