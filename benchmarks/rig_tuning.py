@@ -123,7 +123,10 @@ def scenes(split: str, per_type: int, stride: int, cache: Path, jobs: int,
     rendering = f'_oversampled{oversampling}' if oversampling > 1 else ''
     pool = ('' if settings.rig_pool_seed == DEFAULT_SETTINGS.rig_pool_seed
             else f'_pool{settings.rig_pool_seed}')
-    path = cache / f'rig_tuning_{split}_{per_type}_{stride}{rendering}{pool}.pickle'
+    size = ('' if (settings.image_width, settings.image_height)
+            == (DEFAULT_SETTINGS.image_width, DEFAULT_SETTINGS.image_height)
+            else f'_{settings.image_width}x{settings.image_height}')
+    path = cache / f'rig_tuning_{split}_{per_type}_{stride}{rendering}{pool}{size}.pickle'
     if path.exists():
         loaded: list[tuple[str, SyntheticScene]] = pickle.loads(path.read_bytes())
         return loaded
@@ -375,6 +378,10 @@ def main() -> None:
     parser.add_argument('--rig-pool-seed', type=int, default=DEFAULT_SETTINGS.rig_pool_seed,
                         help="draw the split's rigs from the pool of this seed instead: rigs "
                              'that neither tuning nor the evaluation split used')
+    parser.add_argument('--image-size', default=None, metavar='WxH',
+                        help='render every rig at this image size instead of '
+                             f'{DEFAULT_SETTINGS.image_width}x{DEFAULT_SETTINGS.image_height} '
+                             '(the same fields of view: finer pixels)')
     parser.add_argument('--by-rig', action='store_true',
                         help='the outcomes of rigs on either side of 1 mm of depth per 0.1 px '
                              '(rig_breakdown.py)')
@@ -387,6 +394,13 @@ def main() -> None:
     if args.against and not Path(args.against).is_file():
         parser.error(f'--against {args.against}: no such file (write one with --save)')
     settings = replace(DEFAULT_SETTINGS, rig_pool_seed=args.rig_pool_seed)
+    if args.image_size:
+        width, _, height = args.image_size.partition('x')
+        if not (width.isdigit() and height.isdigit() and int(width) >= 64
+                and int(height) >= 48):
+            parser.error(f'--image-size {args.image_size}: expected WIDTHxHEIGHT in pixels, '
+                         'at least 64x48')
+        settings = replace(settings, image_width=int(width), image_height=int(height))
     matched = scenes(args.split, args.per_type, args.point_stride, Path(args.cache), args.jobs,
                      args.oversampling, settings)[args.from_scene * len(OBJECT_TYPES):]
     at_stride_one = (dict(scenes(args.split, args.per_type, 1, Path(args.cache), args.jobs,

@@ -197,6 +197,26 @@ def test_a_disc_of_the_lowest_objects_height_is_fitted_on_a_near_rig():
     assert np.hypot(*(fit.centre - truth)) < 0.5e-3
 
 
+def test_a_top_over_a_hundred_pixels_wide_is_fitted_on_every_third_pixel():
+    # 126 px across in the left image: scored on every third pixel (FULL_RESOLUTION_PX), and
+    # fitted as long as it is no wider than MAX_TOP_WIDTH_PX
+    box = Box((0.2, 0.15), 0.12, 0.025)
+    left_image, right_image, left, right, outline = plain_box_pair(
+        RIG, box, top_grey=200.0, right_gain=0.9, right_offset=12.0, top_texture=20.0)
+    area = _area(box, outline, left_image.pixels.shape)
+    assert 100 < np.ptp(area.u_left) <= top_shape_fit.MAX_TOP_WIDTH_PX
+    across = np.linspace(-box.size / 2, box.size / 2, 20)  # the top's matches, evenly
+    on_top = np.array(box.centre_xy) + np.stack(np.meshgrid(across, across), -1).reshape(-1, 2)
+    area.ok, area.xyz_world = True, np.column_stack([on_top, np.full(len(on_top), box.height)])
+    truth = np.array(box.centre_xy)
+    guess = truth + np.array([0.002, -0.0025])
+    fit = top_shape_fit.fitted(area, SimpleNamespace(left_image=left_image,
+                                                     right_image=right_image),
+                               left, right, POSE, guess)
+    assert fit is not None and fit.shape == 'rectangle'
+    assert np.hypot(*(fit.centre - truth)) < 1.5e-3
+
+
 def test_a_top_standing_too_little_out_in_disparity_is_not_scored():
     box = Box((0.21, 0.16), 0.04, 0.001)
     left_image, right_image, left, right, outline = plain_box_pair(RIG, box, top_grey=200.0)

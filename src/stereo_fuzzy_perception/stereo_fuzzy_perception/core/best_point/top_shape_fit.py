@@ -105,10 +105,11 @@ FULL_RESOLUTION_PX = 50
 wider one on every second (up to twice this), third...: the fit's cost grows with the crop,
 and a wide face has pixels to spare."""
 
-MAX_TOP_WIDTH_PX = 100
-"""A face wider or taller than this in the left image is not fitted: the fit's cost grows
-with the crop, and the points it brought within 3 mm on the tuning splits were on narrower
-faces (benchmarks/EXPERIMENTS.md, nineteenth session)."""
+MAX_TOP_WIDTH_PX = 150
+"""A face wider or taller than this in the left image is not fitted. Faces over twice
+FULL_RESOLUTION_PX are scored on every third pixel, so a face up to this wide costs about
+what one of 100 px does (why this bound, measured: the package README, "The top fitted to
+both images")."""
 
 
 def _disc_fitter() -> ThreadPoolExecutor:
