@@ -159,15 +159,23 @@ def _area(box, outline, shape):
                            v_left=v_left.astype(float))
 
 
-def _fitted_from_a_guess(box, top_texture):
-    """Return (fit, true centre, guess) for the box ray-cast in both images: a plain or
-    textured top on a textured table, its walls plain and darker; the area the chain would hand
-    over is the top's outline in the left image, its centre 2-3 mm off."""
+def _box_seen_with_a_guess(box, top_texture):
+    """Return (left image, right image, left, right, area, true centre, guess) for the box
+    ray-cast in both images: a plain or textured top on a textured table, its walls plain and
+    darker; the area the chain would hand over is the top's outline in the left image, its
+    centre 2-3 mm off."""
     left_image, right_image, left, right, outline = plain_box_pair(
         RIG, box, top_grey=200.0, right_gain=0.9, right_offset=12.0, top_texture=top_texture)
     area = _area(box, outline, left_image.pixels.shape)
     truth = np.array(box.centre_xy)
-    guess = truth + np.array([0.002, -0.0025])
+    return left_image, right_image, left, right, area, truth, truth + np.array([0.002, -0.0025])
+
+
+def _fitted_from_a_guess(box, top_texture):
+    """Return (fit, true centre, guess) for the box of _box_seen_with_a_guess, fitted from the
+    guess by fit_top_shape."""
+    left_image, right_image, left, right, area, truth, guess = _box_seen_with_a_guess(
+        box, top_texture)
     axes = (0.1, 0.9 * box.size, 0.9 * box.size)
     costs = top_shape_costs(area, left_image, right_image, left, right, POSE, guess, axes)
     assert costs is not None
@@ -201,15 +209,11 @@ def test_a_top_over_a_hundred_pixels_wide_is_fitted_on_every_third_pixel():
     # 126 px across in the left image: scored on every third pixel (FULL_RESOLUTION_PX), and
     # fitted as long as it is no wider than MAX_TOP_WIDTH_PX
     box = Box((0.2, 0.15), 0.12, 0.025)
-    left_image, right_image, left, right, outline = plain_box_pair(
-        RIG, box, top_grey=200.0, right_gain=0.9, right_offset=12.0, top_texture=20.0)
-    area = _area(box, outline, left_image.pixels.shape)
+    left_image, right_image, left, right, area, truth, guess = _box_seen_with_a_guess(box, 20.0)
     assert 100 < np.ptp(area.u_left) <= top_shape_fit.MAX_TOP_WIDTH_PX
     across = np.linspace(-box.size / 2, box.size / 2, 20)  # the top's matches, evenly
-    on_top = np.array(box.centre_xy) + np.stack(np.meshgrid(across, across), -1).reshape(-1, 2)
+    on_top = truth + np.stack(np.meshgrid(across, across), -1).reshape(-1, 2)
     area.ok, area.xyz_world = True, np.column_stack([on_top, np.full(len(on_top), box.height)])
-    truth = np.array(box.centre_xy)
-    guess = truth + np.array([0.002, -0.0025])
     fit = top_shape_fit.fitted(area, SimpleNamespace(left_image=left_image,
                                                      right_image=right_image),
                                left, right, POSE, guess)
