@@ -24,6 +24,7 @@ from rcl_interfaces.msg import (
 )
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -210,7 +211,9 @@ def run_node(node_type: Callable[[], N], args: list[str] | None = None) -> None:
     """Run a node until shutdown: every node's `main`.
 
     A StartupError raised while the node is built is logged as one FATAL line and the process
-    exits with code 1; Ctrl-C and an external shutdown end it normally.
+    exits with code 1; Ctrl-C and an external shutdown end it normally, also when rclpy's
+    signal handler shuts the context down while spin is building its wait set (spin then
+    raises RCLError, "the given context is not valid": ros2/rclpy#1166).
 
     Args:
         node_type: Builds the node (its class).
@@ -224,6 +227,9 @@ def run_node(node_type: Callable[[], N], args: list[str] | None = None) -> None:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except _rclpy.RCLError:
+        if rclpy.ok():  # not the shutdown race: a real failure
+            raise
     except StartupError as error:
         logger_name = error.node_name or getattr(node_type, '__name__', 'node')
         rclpy.logging.get_logger(logger_name).fatal(f'cannot start: {error}')
