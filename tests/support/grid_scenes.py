@@ -121,8 +121,7 @@ WALL_SAMPLES = 60
 def plain_box_pair(rig: StereoRig, box: Box, top_grey: float = 140.0, wall_grey: float = 70.0,
                    noise_grey: float = 1.5, seed: int = 0, fov_deg: float = 45.0,
                    right_gain: float = 1.0, right_offset: float = 0.0,
-                   top_texture: float = 0.0, walls_from_footprint: bool = False,
-                   top_stripes_m: float = 0.0
+                   top_texture: float = 0.0, walls_from_footprint: bool = False
                    ) -> tuple[RectifiedImage, RectifiedImage, CameraCalibration,
                               CameraCalibration, np.ndarray]:
     """Return both rectified images of a plain-topped box on a textured table, ray-cast.
@@ -131,9 +130,7 @@ def plain_box_pair(rig: StereoRig, box: Box, top_grey: float = 140.0, wall_grey:
     cells), so both cameras see the same texture where it lies; the top is `top_grey` and its
     walls `wall_grey`, both with sensor noise only; the right camera has its own gain and
     offset. `top_texture` gives the top a texture of its own, fixed on it as the table's is on
-    the table (its standard deviation in grey levels); `top_stripes_m` adds stripes across
-    world x of that period instead, of 40 grey levels either way (a periodic top, as wood or a
-    print of bars). `walls_from_footprint` draws a wall only
+    the table (its standard deviation in grey levels). `walls_from_footprint` draws a wall only
     where the ray's ground point lies in the footprint, as these images were first drawn: the
     rays that clip a wall's corner then show the table. Returns (left image, right image, left
     and right rectified calibrations, the top's outline (K, 2) in the left image [px]).
@@ -171,8 +168,6 @@ def plain_box_pair(rig: StereoRig, box: Box, top_grey: float = 140.0, wall_grey:
                                                          (top[..., 1] + 0.1) * 1000.0],
                                                  order=1, mode='wrap')
         top_value = top_grey + (top_texture / 30.0) * on_top_texture
-        if top_stripes_m:
-            top_value = top_value + 40.0 * np.sin(2.0 * math.pi * top[..., 0] / top_stripes_m)
         grey = np.where(on_top, top_value, np.where(on_wall, wall_grey, 110.0 + table))
         grey = gain * (grey + rng.normal(0.0, noise_grey, grey.shape)) + offset
         images.append(RectifiedImage(np.clip(np.round(grey), 0, 255).astype(np.uint8)))

@@ -30,7 +30,6 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     DEGENERATE_AREA,
     LOOK_FACE_AT_MODE,
     LOOK_MATCHES,
-    LOOK_PIECES_MATCHED_AGAIN,
     LOOK_PIECES_OUTLINED,
     LOOK_PLAIN_FACE,
     LOOK_PLAIN_OBJECT,
@@ -49,7 +48,6 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     find_textured_area,
 )
 from stereo_fuzzy_perception.core.best_point.face_appearance import low_face_from_appearance
-from stereo_fuzzy_perception.core.best_point.face_matched_again import face_matched_again
 from stereo_fuzzy_perception.core.best_point.face_outline import (
     face_from_image,
     plain_face_from_image,
@@ -418,8 +416,7 @@ looked at again at stride 1 (second_look.py) before its texture is."""
 
 
 def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraCalibration,
-                  world_from_camera: np.ndarray, config: AreaConfig, match_again: bool = True
-                  ) -> CorrelationArea:
+                  world_from_camera: np.ndarray, config: AreaConfig) -> CorrelationArea:
     """Return step 1 as every selector sees it: the correlation area, its outline taken from
     the image when the matches bring it (face_outline.py), or why there is none.
 
@@ -434,13 +431,11 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     the image that holds it is taken at its height when both images put it there
     (plain_object.plain_top_at_matched_height). A face taken whole from the image's plain
     region loses a side wall of its grey that joined it, and one that is mostly wall is no
-    face (plain_face_without_side_wall). Last, a pair refused after all of it whose matches
-    made a face in pieces is matched again on the pieces' plane and looked at once more from
-    the start (face_matched_again.py; `match_again` false skips it).
+    face (plain_face_without_side_wall).
     """
     shift = disparity_shift(left, right)
     area = find_correlation_area(points, world_from_camera, config, shift)
-    scattered, pieces = area.scattered_face, area.face_in_pieces
+    scattered = area.scattered_face
     if points.left_image is not None and config.outline_from_image:
         if area.ok:
             area = face_from_image(area, points.left_image, left, right, world_from_camera,
@@ -517,15 +512,6 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
         # it does not make a sliver or a blob a face.
         area = low_face_from_appearance(area, points.left_image, left, right,
                                         world_from_camera, config.min_points) or area
-    if not area.ok and match_again and pieces is not None and config.outline_from_image:
-        # A periodic top's matches a repeat away are lost and leave it in pieces; the pieces
-        # that stayed put its plane where the right disparities are the only ones in reach.
-        again = face_matched_again(pieces, points, left, right, world_from_camera)
-        if again is not None:
-            found = decision_area(again, left, right, world_from_camera, config,
-                                  match_again=False)
-            if found.ok:
-                return replace(found, look=LOOK_PIECES_MATCHED_AGAIN)
     return area
 
 
