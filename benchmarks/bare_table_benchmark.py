@@ -13,6 +13,11 @@ Beside it, in the same run, the plain OpenCV pipeline of rig_generalisation_benc
     source scripts/env.sh
     nice python benchmarks/bare_table_benchmark.py                    # 50 scenes per type
     nice python benchmarks/bare_table_benchmark.py --split train      # where changes are tuned
+    nice python benchmarks/bare_table_benchmark.py --split train --rig-pool-seed 15
+
+`--rig-pool-seed N` (train or validation only) draws the split's rigs from the pool of seed N,
+as rig_tuning.py does: bare tables seen by rigs neither tuning nor the evaluation split used,
+for a change that must give no point where nothing is to be checked on many more tables.
 
 Prints markdown and writes <output>/bare_tables[_<split>].md.
 """
@@ -42,6 +47,7 @@ from stereo_fuzzy_perception.core.best_point.second_look import decide_with_seco
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
 from stereo_fuzzy_perception.simulation.distribution_source import match_scene  # noqa: E402
 from stereo_fuzzy_perception.simulation.scene_distribution import (  # noqa: E402
+    DEFAULT_SETTINGS,
     SPLITS,
     bare_table,
     split_plan,
@@ -58,14 +64,23 @@ def main() -> None:
                         help='scenes per object type of the split (each without its object)')
     parser.add_argument('--point-stride', type=int, nargs='+', default=[1, 3])
     parser.add_argument('--output', default=str(ROOT / 'benchmarks' / 'results'))
+    parser.add_argument('--rig-pool-seed', type=int,
+                        help="draw the split's rigs from the pool of this seed (train or "
+                        'validation only): rigs neither tuning nor the evaluation split used')
     args = parser.parse_args()
+    settings = DEFAULT_SETTINGS
+    if args.rig_pool_seed is not None:
+        if args.split == 'evaluation':
+            parser.error('--rig-pool-seed draws other rigs for the train or validation split; '
+                         'the evaluation split keeps its held-out rigs')
+        settings = replace(DEFAULT_SETTINGS, rig_pool_seed=args.rig_pool_seed)
     strides = sorted(set(args.point_stride))
     chooser = BestPointChooser.create('fuzzy_fitted', AreaConfig(), StereoRig())
     given: dict[object, list[str]] = collections.defaultdict(list)
     refusals: dict[int, collections.Counter[str]] = collections.defaultdict(collections.Counter)
     by_table: dict[tuple[object, str], int] = collections.Counter()
     tables: collections.Counter[str] = collections.Counter()
-    plan = split_plan(args.split, args.per_type)
+    plan = split_plan(args.split, args.per_type, settings)
     start = time.perf_counter()
     for index, planned in enumerate(plan):
         scene = bare_table(planned.draw())
@@ -125,6 +140,8 @@ def main() -> None:
     output = Path(args.output)
     output.mkdir(parents=True, exist_ok=True)
     suffix = '' if args.split == 'evaluation' else f'_{args.split}'
+    if args.rig_pool_seed is not None:
+        suffix += f'_pool{args.rig_pool_seed}'
     (output / f'bare_tables{suffix}.md').write_text(report + '\n')
     print(f'\nwrote {output / f"bare_tables{suffix}.md"}', file=sys.stderr)
 
