@@ -51,7 +51,7 @@ from stereo_fuzzy_perception.core.best_point.point_selectors import decision_are
 from stereo_fuzzy_perception.core.best_point.work_surface import SurfacePlane  # noqa: E402
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene  # noqa: E402
 
-from benchmarks.rig_tuning import SPLITS, scenes  # noqa: E402
+from benchmarks.rig_tuning import add_cached_split_arguments, scenes  # noqa: E402
 
 BAND_PX = 2.5
 """The band reaches this far either side of the outline [px]."""
@@ -144,12 +144,7 @@ def rim_heights(scene: SyntheticScene, surface: SurfacePlane, max_height_m: floa
 def main() -> None:
     """Align the true rim of every disc of the split the chain refuses; print the heights."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
-    parser.add_argument('--split', default='train', choices=SPLITS)
-    parser.add_argument('--per-type', type=int, default=50)
-    parser.add_argument('--cache', default='/tmp/rig_tuning_cache',
-                        help="rig_tuning.py's cache of matched scenes")
-    parser.add_argument('--oversampling', type=int, default=1, choices=(1, 3),
-                        help="the split rendered antialiased (rig_tuning.py's cache of it)")
+    add_cached_split_arguments(parser)
     parser.add_argument('--max-height-mm', type=float, default=20.0)
     args = parser.parse_args()
     config = AreaConfig()

@@ -39,7 +39,7 @@ from stereo_fuzzy_perception.core.best_point.point_selectors import (  # noqa: E
 )
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
 
-from benchmarks.rig_tuning import SPLITS, scenes  # noqa: E402
+from benchmarks.rig_tuning import add_cached_split_arguments, scenes  # noqa: E402
 
 RULES = [(0.0, 0.0, 0.0), (1.0, 100.0, 0.0), (1.0, 5.0, 0.02), (1.0, 5.0, 0.01),
          (0.5, 5.0, 0.0), (0.5, 5.0, 0.02), (0.5, 5.0, 0.01), (0.5, 100.0, 0.02),
@@ -51,13 +51,8 @@ RULES = [(0.0, 0.0, 0.0), (1.0, 100.0, 0.0), (1.0, 5.0, 0.02), (1.0, 5.0, 0.01),
 def main() -> None:
     """Fit the top of every decided scene of the split and print the rules' outcomes."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
-    parser.add_argument('--split', default='train', choices=SPLITS)
-    parser.add_argument('--per-type', type=int, default=50)
-    parser.add_argument('--cache', default='/tmp/rig_tuning_cache',
-                        help="rig_tuning.py's cache of matched scenes")
+    add_cached_split_arguments(parser)
     parser.add_argument('--point-stride', type=int, default=1, choices=(1, 3))
-    parser.add_argument('--oversampling', type=int, default=1, choices=(1, 3),
-                        help="the split rendered antialiased (rig_tuning.py's cache of it)")
     parser.add_argument('--restarts', type=int, default=top_shape_fit.RESTARTS,
                         help='start Nelder-Mead again from where it stopped, up to this often')
     parser.add_argument('--samples', type=int, default=top_shape_fit.SAMPLES,

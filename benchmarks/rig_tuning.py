@@ -140,6 +140,18 @@ def scenes(split: str, per_type: int, stride: int, cache: Path, jobs: int,
     return result
 
 
+def add_cached_split_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add what a development probe reads a tuning split's matched scenes by: --split,
+    --per-type, --cache (this script's cache, made by its first run on the split) and
+    --oversampling (the split rendered antialiased)."""
+    parser.add_argument('--split', default='train', choices=SPLITS)
+    parser.add_argument('--per-type', type=int, default=50)
+    parser.add_argument('--cache', default='/tmp/rig_tuning_cache',
+                        help="rig_tuning.py's cache of matched scenes")
+    parser.add_argument('--oversampling', type=int, default=1, choices=(1, 3),
+                        help="the split rendered antialiased (rig_tuning.py's cache of it)")
+
+
 def outcome(error_mm: float | None, tolerance_mm: float) -> str:
     """Return the class of one scene's result: 'within', '<= 10 mm', '> 10 mm' or 'no point'."""
     if error_mm is None or math.isnan(error_mm):
