@@ -79,6 +79,10 @@ from stereo_fuzzy_perception.core.best_point.rule_base import (
     load_rule_base,
     packaged_rule_base,
 )
+from stereo_fuzzy_perception.core.best_point.surface_lookalike import (
+    MAX_OVERLAP as SURFACE_LOOKALIKE_OVERLAP,
+)
+from stereo_fuzzy_perception.core.best_point.surface_lookalike import looks_like_the_surface
 from stereo_fuzzy_perception.core.best_point.top_shape_fit import (
     TopShapeMemory,
     point_with_fitted_top,
@@ -431,7 +435,8 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     the image that holds it is taken at its height when both images put it there
     (plain_object.plain_top_at_matched_height). A face taken whole from the image's plain
     region loses a side wall of its grey that joined it, and one that is mostly wall is no
-    face (plain_face_without_side_wall).
+    face (plain_face_without_side_wall). Last, a face standing barely out of the surface
+    that looks like the surface around it is no object (surface_lookalike.py).
     """
     shift = disparity_shift(left, right)
     area = find_correlation_area(points, world_from_camera, config, shift)
@@ -512,6 +517,17 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
         # it does not make a sliver or a blob a face.
         area = low_face_from_appearance(area, points.left_image, left, right,
                                         world_from_camera, config.min_points) or area
+    if area.ok and points.left_image is not None and config.outline_from_image:
+        # A patch of a repeating table matched a repeat off stands barely out, as a low top
+        # does; unlike a top it looks like the table around it.
+        overlap = looks_like_the_surface(area.u_left, area.v_left, area.object_height_sigmas,
+                                         points.left_image)
+        if overlap is not None:
+            return replace(area, status=NO_OBJECT, reason=(
+                f'the top face found stands only {area.object_height_sigmas:.1f} sigmas out of '
+                f'the work surface and looks like the surface around it (appearance overlap '
+                f'{overlap:.2f} > {SURFACE_LOOKALIKE_OVERLAP:g}): a patch of the surface '
+                'matched a repeat of its texture away, not an object'))
     return area
 
 
