@@ -38,18 +38,31 @@ RING_OUTER_PX = 14
 APPEARANCE_BINS = 8
 """Bins per axis of the appearance histograms."""
 
+CROP_MARGIN_PX = RING_OUTER_PX + 10
+"""The crop reaches this far past the face's pixels [px]: the ring, plus the reach of the
+grey's smoothing (4 px) and of the contrast's square (2 px), with room to spare."""
+
 
 def overlap_with_surroundings(u_left: np.ndarray, v_left: np.ndarray, image: RectifiedImage
                               ) -> float:
     """Return the Bhattacharyya coefficient (0: nothing alike, 1: the same) of the appearance
     inside the convex hull of the face's pixels (u_left, v_left) and in the ring around it;
     1.0 when either holds no pixel of the image part (nothing tells them apart)."""
-    pixels = image.pixels
-    if pixels.ndim != 2 or len(u_left) < 3:
+    if image.pixels.ndim != 2 or len(u_left) < 3:
         return 1.0
-    hull = cv2.convexHull(np.column_stack([np.asarray(u_left, dtype=float) - image.x,
-                                           np.asarray(v_left, dtype=float) - image.y])
-                          .astype(np.float32))
+    columns = np.asarray(u_left, dtype=float) - image.x
+    rows = np.asarray(v_left, dtype=float) - image.y
+    # Only the pixels around the face are smoothed: CROP_MARGIN_PX past the ring holds all
+    # that the ring's smoothed grey and contrast read, so the crop changes no value.
+    height, width = image.pixels.shape
+    left = max(int(np.floor(columns.min())) - CROP_MARGIN_PX, 0)
+    top = max(int(np.floor(rows.min())) - CROP_MARGIN_PX, 0)
+    right = min(int(np.ceil(columns.max())) + CROP_MARGIN_PX + 1, width)
+    bottom = min(int(np.ceil(rows.max())) + CROP_MARGIN_PX + 1, height)
+    if right <= left or bottom <= top:
+        return 1.0
+    pixels = image.pixels[top:bottom, left:right]
+    hull = cv2.convexHull(np.column_stack([columns - left, rows - top]).astype(np.float32))
     inside = np.zeros(pixels.shape, np.uint8)
     cv2.fillPoly(inside, [np.round(hull).astype(np.int32)], 1)
     outside = cv2.distanceTransform(1 - inside, cv2.DIST_L2, 3)
