@@ -24,7 +24,8 @@ from stereo_fuzzy_perception.core.matched_points import RectifiedImage
 
 LOW_FACE_SIGMAS = 6.2
 """Faces standing less than this out of the surface's noise (CorrelationArea.
-object_height_sigmas) are looked at: nearly all the bare tables given a point stood 3.8-6.1."""
+object_height_sigmas) are looked at: where nearly all the faces given on bare tables stood
+(the measurements: benchmarks/EXPERIMENTS.md, twenty-seventh session)."""
 
 MAX_OVERLAP = 0.85
 """Such a face whose appearance overlaps its ring's by more than this is the surface."""
