@@ -19,6 +19,11 @@ Beside it, in the same run, the plain OpenCV pipeline of rig_generalisation_benc
 as rig_tuning.py does: bare tables seen by rigs neither tuning nor the evaluation split used,
 for a change that must give no point where nothing is to be checked on many more tables.
 
+`--cache DIR` (development) keeps the rendered and matched tables of a split in DIR and reads
+them back on the next run with the same split, pool, size and strides: a change to the
+decision is then checked on the same tables in a fraction of the time. A change to rendering
+or matching needs a new DIR.
+
 Prints markdown and writes <output>/bare_tables[_<split>].md.
 """
 
@@ -27,9 +32,11 @@ from __future__ import annotations
 import argparse
 import collections
 import os
+import pickle
 import shlex
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -45,15 +52,48 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (  # noqa: 
 from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser  # noqa: E402
 from stereo_fuzzy_perception.core.best_point.second_look import decide_with_second_look  # noqa: E402
 from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
-from stereo_fuzzy_perception.simulation.distribution_source import match_scene  # noqa: E402
+from stereo_fuzzy_perception.simulation.distribution_source import (  # noqa: E402
+    MatchedDistributionScene,
+    match_scene,
+)
 from stereo_fuzzy_perception.simulation.scene_distribution import (  # noqa: E402
     DEFAULT_SETTINGS,
     SPLITS,
+    DistributionSettings,
     bare_table,
     split_plan,
 )
 
 OPENCV = 'opencv'
+
+
+def matched_tables(split: str, per_type: int, strides: list[int],
+                   settings: DistributionSettings, cache: Path | None
+                   ) -> Iterator[MatchedDistributionScene]:
+    """Yield the split's scenes without their object, rendered and matched at every stride
+    (with the OpenCV pipeline's point); with a cache directory, from the file a run with the
+    same split, size, pool and strides left there, or into it."""
+    path = None
+    if cache is not None:
+        pool = ('' if settings.rig_pool_seed == DEFAULT_SETTINGS.rig_pool_seed
+                else f'_pool{settings.rig_pool_seed}')
+        path = cache / (f'bare_tables_{split}_{per_type}_stride{"-".join(map(str, strides))}'
+                        f'{pool}.pickle')
+        if path.is_file():
+            yield from pickle.loads(path.read_bytes())
+            return
+    kept = []
+    for planned in split_plan(split, per_type, settings):
+        matched = match_scene(bare_table(planned.draw()), strides, opencv=True)
+        if path is not None:
+            kept.append(matched)
+        yield matched
+    if path is not None:
+        # written whole, then renamed: a run stopped half-way leaves no half a cache
+        path.parent.mkdir(parents=True, exist_ok=True)
+        partial = path.with_suffix('.partial')
+        partial.write_bytes(pickle.dumps(kept))
+        partial.replace(path)
 
 
 def main() -> None:
@@ -67,6 +107,9 @@ def main() -> None:
     parser.add_argument('--rig-pool-seed', type=int,
                         help="draw the split's rigs from the pool of this seed (train or "
                         'validation only): rigs neither tuning nor the evaluation split used')
+    parser.add_argument('--cache', metavar='DIR',
+                        help='keep the rendered and matched tables here and read them back on '
+                             'the next run (development: module docstring)')
     args = parser.parse_args()
     settings = DEFAULT_SETTINGS
     if args.rig_pool_seed is not None:
@@ -80,13 +123,14 @@ def main() -> None:
     refusals: dict[int, collections.Counter[str]] = collections.defaultdict(collections.Counter)
     by_table: dict[tuple[object, str], int] = collections.Counter()
     tables: collections.Counter[str] = collections.Counter()
-    plan = split_plan(args.split, args.per_type, settings)
+    count = len(split_plan(args.split, args.per_type, settings))
     start = time.perf_counter()
-    for index, planned in enumerate(plan):
-        scene = bare_table(planned.draw())
+    for index, matched in enumerate(matched_tables(
+            args.split, args.per_type, strides, settings,
+            Path(args.cache) if args.cache else None)):
+        scene = matched.scene
         table = scene.scene.surface_texture_family
         tables[table] += 1
-        matched = match_scene(scene, strides, opencv=True)
         where = f'seed {scene.seed} (rig {scene.rig.index}, {table} table)'
         for stride, synthetic in matched.matched.items():
             posed = replace(chooser, world_from_camera=synthetic.rig.world_from_left_camera())
@@ -103,11 +147,10 @@ def main() -> None:
             given[OPENCV].append(where)
             by_table[(OPENCV, table)] += 1
         if (index + 1) % 20 == 0:
-            print(f'{index + 1}/{len(plan)} scenes, {time.perf_counter() - start:.0f} s',
+            print(f'{index + 1}/{count} scenes, {time.perf_counter() - start:.0f} s',
                   file=sys.stderr)
     elapsed = time.perf_counter() - start
     command = shlex.join(['python', 'benchmarks/bare_table_benchmark.py', *sys.argv[1:]])
-    count = len(plan)
     rows = [*strides, OPENCV]
     names = {row: f'fuzzy_fitted, point stride {row}' if row != OPENCV
              else 'OpenCV pipeline (SGBM + largest component + top band)' for row in rows}
