@@ -1,12 +1,13 @@
 """benchmarks/bare_table_benchmark.py: bare tables seen by the rigs of other pools."""
 
 import dataclasses
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
+
+from benchmarks import bare_table_benchmark
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -30,30 +31,20 @@ def test_a_pool_seed_writes_a_report_of_its_own(tmp_path):
     assert 'of 4 |' in report  # one bare table per object type
 
 
-
-def _benchmark_module():
-    spec = importlib.util.spec_from_file_location(
-        'bare_table_benchmark', ROOT / 'benchmarks' / 'bare_table_benchmark.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_a_cache_gives_the_same_tables_back_without_rendering_them_again(tmp_path,
                                                                            monkeypatch):
-    module = _benchmark_module()
     rendered = []
-    render = module.match_scene
+    render = bare_table_benchmark.match_scene
 
     def counted(scene, strides, opencv):
         rendered.append(scene.seed)
         return render(scene, strides, opencv=opencv)
 
-    monkeypatch.setattr(module, 'match_scene', counted)
-    settings = dataclasses.replace(module.DEFAULT_SETTINGS, rig_pool_seed=15)
+    monkeypatch.setattr(bare_table_benchmark, 'match_scene', counted)
+    settings = dataclasses.replace(bare_table_benchmark.DEFAULT_SETTINGS, rig_pool_seed=15)
 
     def tables():
-        return list(module.matched_tables('train', 1, [3], settings, tmp_path))
+        return list(bare_table_benchmark.matched_tables('train', 1, [3], settings, tmp_path))
 
     first = tables()
     assert len(rendered) == 4 and len(first) == 4  # one bare table per object type
