@@ -20,9 +20,9 @@ as rig_tuning.py does: bare tables seen by rigs neither tuning nor the evaluatio
 for a change that must give no point where nothing is to be checked on many more tables.
 
 `--cache DIR` (development) keeps the rendered and matched tables of a split in DIR and reads
-them back on the next run with the same split, pool, size and strides: a change to the
-decision is then checked on the same tables in a fraction of the time. A change to rendering
-or matching needs a new DIR.
+them back on the next run with the same split, scenes per type, pool and strides: a change to
+the decision is then checked on the same tables in a fraction of the time. A change to
+rendering or matching needs a new DIR.
 
 Prints markdown and writes <output>/bare_tables[_<split>].md.
 """
@@ -72,7 +72,7 @@ def matched_tables(split: str, per_type: int, strides: list[int],
                    ) -> Iterator[MatchedDistributionScene]:
     """Yield the split's scenes without their object, rendered and matched at every stride
     (with the OpenCV pipeline's point); with a cache directory, from the file a run with the
-    same split, size, pool and strides left there, or into it."""
+    same split, scenes per type, pool and strides left there, or into it."""
     path = None
     if cache is not None:
         pool = ('' if settings.rig_pool_seed == DEFAULT_SETTINGS.rig_pool_seed
