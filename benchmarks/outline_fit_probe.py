@@ -4,10 +4,11 @@
 The model and the fit are the chain's own (stereo_fuzzy_perception.core.best_point.
 top_shape_fit; its docstring gives the model). This probe fits every decided scene of a tuning
 split and prints what several rules for taking the fitted centre would give (weight of the
-fit, furthest move, least drop of the cost per pixel) beside the chain's point before the
-fit, and how long the fit took (costs and Nelder-Mead) per scene. It is how the rule in
-top_shape_fit (WEIGHT, MAX_MOVE_M, MIN_DROP) and its cost settings were chosen: on the train
-and validation splits, never on the evaluation split. The matched scenes come from
+fit, furthest move, least drop of the cost per pixel, furthest as-good end of the fits from
+shifted starts) beside the chain's point before the fit, and how long the fit took (costs and
+Nelder-Mead) per scene. It is how the rule in top_shape_fit (WEIGHT, MAX_MOVE_M, MIN_DROP,
+MAX_SPREAD_M) and its cost settings were chosen: on the train and validation splits and pools
+of rigs no split used, never on the evaluation split. The matched scenes come from
 rig_tuning.py's cache (--cache; made by its first run on a split).
 
     source scripts/env.sh
@@ -41,11 +42,17 @@ from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
 
 from benchmarks.rig_tuning import add_cached_split_arguments, scenes  # noqa: E402
 
-RULES = [(0.0, 0.0, 0.0), (1.0, 100.0, 0.0), (1.0, 5.0, 0.02), (1.0, 5.0, 0.01),
-         (0.5, 5.0, 0.0), (0.5, 5.0, 0.02), (0.5, 5.0, 0.01), (0.5, 100.0, 0.02),
-         (0.3, 5.0, 0.02), (0.7, 5.0, 0.02), (0.7, 5.0, 0.01), (0.7, 3.0, 0.01),
-         (0.7, 8.0, 0.01), (0.7, 5.0, 0.005)]
-"""(weight, furthest move [mm], least drop per pixel) of the rules printed."""
+INF = float('inf')
+
+RULES = [(0.0, 0.0, 0.0, INF), (1.0, 100.0, 0.0, INF), (1.0, 5.0, 0.02, INF),
+         (0.5, 5.0, 0.01, INF), (0.7, 5.0, 0.02, INF), (0.7, 5.0, 0.01, INF),
+         (0.7, 3.0, 0.01, INF), (0.7, 8.0, 0.01, INF), (0.7, 5.0, 0.005, INF),
+         (0.7, 7.0, 0.005, INF), (0.7, 5.0, 0.01, 1.5), (0.7, 5.0, 0.005, 1.5),
+         (0.7, 7.0, 0.01, 1.5),
+         (0.7, 7.0, 0.005, 1.0), (0.7, 7.0, 0.005, 1.5), (0.7, 7.0, 0.005, 2.0),
+         (1.0, 7.0, 0.005, 1.5), (0.5, 7.0, 0.005, 1.5)]
+"""(weight, furthest move [mm], least drop per pixel, furthest as-good minimum from the shifted
+starts [mm]) of the rules printed."""
 
 
 def main() -> None:
@@ -97,18 +104,20 @@ def main() -> None:
         target = np.asarray(scene.target_world, dtype=float)
         rows.append((label, chain, fit, target))
         fitted = (f', fitted {fit.shape} {1000.0 * np.linalg.norm(fit.centre - target[:2]):5.1f}'
-                  f' mm on the surface, drop {fit.drop_per_px:.3f}' if fit else ', not fitted')
+                  f' mm on the surface, drop {fit.drop_per_px:.3f}, spread'
+                  f' {1000.0 * fit.spread_m:.1f} mm' if fit else ', not fitted')
         print(f'{label}: chain {1000.0 * np.linalg.norm(chain - target):5.1f} mm{fitted} '
               f'({1000.0 * took:.0f} ms)', flush=True)
     print(f'{len(rows)} decided {args.split} scenes at stride {args.point_stride}, '
           f'{len(seconds)} fitted: within 3 mm / over '
           f'10 mm (the fit took {1000.0 * np.median(seconds):.0f} ms median, '
           f'{1000.0 * np.max(seconds):.0f} ms at most, on this machine)')
-    for weight, max_move_mm, min_drop in RULES:
+    for weight, max_move_mm, min_drop, max_spread_mm in RULES:
         errors = np.array([1000.0 * np.linalg.norm(top_shape_fit.moved_toward_fit(
-            chain, fit, weight, max_move_mm / 1000.0, min_drop) - target)
+            chain, fit, weight, max_move_mm / 1000.0, min_drop, max_spread_mm / 1000.0) - target)
             for _, chain, fit, target in rows])
-        print(f'  weight {weight:.1f}, move <= {max_move_mm:g} mm, drop >= {min_drop:g}: '
+        print(f'  weight {weight:.1f}, move <= {max_move_mm:g} mm, drop >= {min_drop:g}, '
+              f'spread <= {max_spread_mm:g} mm: '
               f'{int(np.sum(errors <= 3.0))} / {int(np.sum(errors > 10.0))}, '
               f'mean {np.mean(errors):.2f} mm')
     if args.save:
@@ -116,7 +125,8 @@ def main() -> None:
             label: {'chain': chain.tolist(), 'target': target.tolist(),
                     'fit': None if fit is None else {'shape': fit.shape,
                                                      'centre': fit.centre.tolist(),
-                                                     'drop': fit.drop_per_px}}
+                                                     'drop': fit.drop_per_px,
+                                                     'spread': fit.spread_m}}
             for label, chain, fit, target in rows}, indent=0))
 
 

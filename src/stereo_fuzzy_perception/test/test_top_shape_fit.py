@@ -193,6 +193,7 @@ def test_a_ray_cast_top_is_found_from_a_guess_millimetres_off(box, top_texture, 
     assert fit.shape == ('disc' if box.round else 'rectangle')
     assert np.hypot(*(fit.centre - truth)) < within_m
     assert fit.drop_per_px >= top_shape_fit.MIN_DROP
+    assert fit.spread_m <= top_shape_fit.MAX_SPREAD_M  # found again from the shifted starts
     moved = moved_toward_fit(np.array([*guess, box.height]), fit)
     assert np.hypot(*(moved[:2] - truth)) < 0.4 * np.hypot(*(guess - truth))
 
@@ -236,8 +237,27 @@ def test_the_point_moves_part_way_only_for_a_near_and_clear_fit():
     far = TopShapeFit('disc', np.array([0.11, 0.1]), drop_per_px=0.05)
     unclear = TopShapeFit('disc', np.array([0.102, 0.1]), drop_per_px=0.01)
     failed = TopShapeFit('disc', np.array([np.nan, np.nan]), drop_per_px=np.nan)
-    for fit in (far, unclear, failed, None):
-        assert moved_toward_fit(chain, fit, 0.5, 0.005, 0.02) == pytest.approx(chain)
+    not_found_again = TopShapeFit('disc', np.array([0.102, 0.1]), 0.05, spread_m=0.003)
+    for fit in (far, unclear, failed, not_found_again, None):
+        assert moved_toward_fit(chain, fit, 0.5, 0.005, 0.02, 0.002) == pytest.approx(chain)
+    found_again = TopShapeFit('disc', np.array([0.102, 0.1]), 0.05, spread_m=0.001)
+    assert moved_toward_fit(chain, found_again, 0.5, 0.005, 0.02, 0.002) == pytest.approx(
+        [0.101, 0.1, 0.05])
+
+
+def test_a_fit_on_a_flat_cost_ends_where_each_start_began_and_says_so():
+    # every pixel costs the same whatever the shape: Nelder-Mead stops where it started, so
+    # the starts shifted by SHIFTED_START_M end that far from the fit, as good as it
+    pixels = np.column_stack([np.linspace(0.09, 0.11, 50), np.full(50, 0.1)])
+    segments = np.column_stack([pixels, pixels])
+    ones = np.ones(50)
+    costs = TopShapeCosts(pixels, segments, segments, np.full(50, 0.001), ones,
+                          np.ones((50, 2)), ones, 1.0, 0.0, 50)
+    fit = fit_top_shape(costs, np.array([0.1, 0.1]), (0.0, 0.02, 0.02))
+    assert fit.centre == pytest.approx([0.1, 0.1])
+    assert fit.spread_m == pytest.approx(top_shape_fit.SHIFTED_START_M)
+    assert moved_toward_fit(np.array([0.101, 0.1, 0.02]), fit, min_drop=-1.0) == pytest.approx(
+        [0.101, 0.1, 0.02])
 
 
 def test_the_memory_gives_a_fit_again_for_the_same_object_and_pose_only():

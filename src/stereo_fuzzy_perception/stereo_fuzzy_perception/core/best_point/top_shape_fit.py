@@ -24,9 +24,11 @@ at once, pixel by pixel, with no window:
   change are scored shape by shape (BAND_M), and the cost runs in numba.
 
 BestPointChooser moves its point toward the fitted centre only where the fit agrees with it
-(within MAX_MOVE_M) and lowered the cost clearly (MIN_DROP per pixel): a fit that lowered the
-cost by little found nothing, and a periodic table can match the top's disparity a centimetre
-away. benchmarks/outline_fit_probe.py measures the rule's variants on the tuning splits.
+(within MAX_MOVE_M), lowered the cost clearly (MIN_DROP per pixel) and is found again from
+starts shifted around its own (MAX_SPREAD_M): a fit that lowered the cost by little found
+nothing, a periodic table can match the top's disparity a centimetre away, and a fit whose
+shifted starts end elsewhere at nearly its cost sits in a flat valley of the cost, not at the
+top. benchmarks/outline_fit_probe.py measures the rule's variants on the tuning splits.
 """
 
 from __future__ import annotations
@@ -84,17 +86,32 @@ SIMPLEX_SIZE_M = 1e-4
 
 BAND_M = 0.005
 """Shapes are scored on the pixels whose label a shape reaching this much further out or in
-than the guessed ones (and two pixels) can change: the fitted centre is taken only within
-MAX_MOVE_M of the guess."""
+than the guessed ones (and two pixels) can change; a shape reaching further is scored as if
+the pixels beyond kept their labels."""
 
-MAX_MOVE_M = 0.005
+MAX_MOVE_M = 0.007
 """A fitted centre further than this from the chain's point is not taken."""
 
-MIN_DROP = 0.01
+MIN_DROP = 0.005
 """...nor one that lowered the cost by less than this per pixel of the crop."""
 
+SHIFTED_START_M = 0.002
+"""The winning shape is fitted again from its start moved this far along x and along y, each
+way: four more fits as thorough as the first (cheaper ones, unrestarted and stopped at a
+coarser simplex, took fewer points within 3 mm: benchmarks/EXPERIMENTS.md, twenty-ninth
+session)."""
+
+NEAR_COST_PER_PX = 0.003
+"""A shifted start's minimum within this of the fit's cost per pixel of the crop is as good
+as the fit (so is a lower one)."""
+
+MAX_SPREAD_M = 0.0015
+"""...and a fitted centre is not taken either when an as-good minimum lies further than this
+from it: the cost's valley is flat there, and where it ends is chance (chosen with
+MAX_MOVE_M and MIN_DROP: benchmarks/EXPERIMENTS.md, twenty-ninth session)."""
+
 WEIGHT = 0.7
-"""The point is moved this share of the way to a fitted centre that passed both tests."""
+"""The point is moved this share of the way to a fitted centre that passed the tests above."""
 
 SAME_OBJECT_M = 0.004
 """A TopShapeMemory gives its fit again for a point this close to the one it was made for
@@ -161,12 +178,14 @@ class TopShapeCosts:
 
 @dataclass(frozen=True)
 class TopShapeFit:
-    """The best shape found, its centre on the surface and how much it lowered the cost per
-    pixel of the crop against the area's own disc."""
+    """The best shape found, its centre on the surface, how much it lowered the cost per
+    pixel of the crop against the area's own disc, and how far from the centre the fits from
+    shifted starts ended at as low a cost (0: all of them at the centre)."""
 
     shape: str
     centre: np.ndarray  # (2,) [m]
     drop_per_px: float
+    spread_m: float = 0.0
 
 
 @numba.njit(cache=True, nogil=True)
@@ -536,8 +555,24 @@ def fit_top_shape(costs: TopShapeCosts, guess: np.ndarray, axes: tuple[float, fl
     fits = {RECTANGLE: _minimise(costs, RECTANGLE, *starts[RECTANGLE], restarts),
             DISC: disc_fit.result()}
     shape = min((DISC, RECTANGLE), key=lambda name: fits[name].fun)
-    drop = (costs.cost(DISC, disc) - fits[shape].fun) / costs.pixels
-    return TopShapeFit(SHAPE_NAMES[shape], np.asarray(fits[shape].x[:2], dtype=float), drop)
+    best = fits[shape]
+    drop = (costs.cost(DISC, disc) - best.fun) / costs.pixels
+    start, scales = starts[shape]
+    shifted = []
+    for dx, dy in ((SHIFTED_START_M, 0.0), (-SHIFTED_START_M, 0.0), (0.0, SHIFTED_START_M),
+                   (0.0, -SHIFTED_START_M)):
+        moved = start.copy()
+        moved[:2] += (dx, dy)
+        shifted.append(moved)
+    # two of the shifted fits run in the second thread while this one runs the other two
+    elsewhere = [_DISC_FITTER.submit(_minimise, costs, shape, moved, scales, restarts)
+                 for moved in shifted[:2]]
+    others = [_minimise(costs, shape, moved, scales, restarts) for moved in shifted[2:]]
+    others += [future.result() for future in elsewhere]
+    as_good = [np.hypot(*(other.x[:2] - best.x[:2])) for other in others
+               if other.fun <= best.fun + NEAR_COST_PER_PX * costs.pixels]
+    return TopShapeFit(SHAPE_NAMES[shape], np.asarray(best.x[:2], dtype=float), drop,
+                       float(max(as_good, default=0.0)))
 
 
 def fitted(area: CorrelationArea, points: MatchedPoints, left: CameraCalibration,
@@ -558,12 +593,15 @@ def fitted(area: CorrelationArea, points: MatchedPoints, left: CameraCalibration
 
 
 def moved_toward_fit(point: np.ndarray, fit: TopShapeFit | None, weight: float = WEIGHT,
-                     max_move_m: float = MAX_MOVE_M, min_drop: float = MIN_DROP) -> np.ndarray:
+                     max_move_m: float = MAX_MOVE_M, min_drop: float = MIN_DROP,
+                     max_spread_m: float = MAX_SPREAD_M) -> np.ndarray:
     """Return the point moved `weight` of the way to the fitted centre on the surface, when the
-    fit lies within max_move_m of it and lowered the cost by min_drop per pixel."""
+    fit lies within max_move_m of it, lowered the cost by min_drop per pixel and its shifted
+    starts ended within max_spread_m of it."""
     point = np.array(point, dtype=float)
     if fit is None or not (fit.drop_per_px >= min_drop) or not (
-            np.hypot(*(fit.centre - point[:2])) <= max_move_m):
+            np.hypot(*(fit.centre - point[:2])) <= max_move_m) or not (
+            fit.spread_m <= max_spread_m):
         return point
     point[:2] = (1.0 - weight) * point[:2] + weight * fit.centre
     return point
