@@ -84,7 +84,13 @@ class Harness:
                                        qos.RESULTS)
         self.probe.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics.append,
                                        qos.DIAGNOSTICS)
-        wait_until(lambda: self.publisher.get_subscription_count() > 0
+        # Another harness in the same context also subscribes to the pairs: a count above zero
+        # can be that one's node, so wait until every subscriber the graph knows is matched.
+        topic = self.publisher.topic_name
+        wait_until(lambda: 0 < self.probe.count_subscribers(topic)
+                   <= self.publisher.get_subscription_count()
+                   and 0 < self.probe.count_publishers(topic)
+                   <= self.node.pair_subscription.get_publisher_count()
                    and self.node.matches_publisher.get_subscription_count() > 0,
                    TIMEOUT, 'the probe and the node to discover each other', self.executor)
 
