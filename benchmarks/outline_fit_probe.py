@@ -7,8 +7,8 @@ split and prints what several rules for taking the fitted centre would give (wei
 fit, furthest move, least drop of the cost per pixel, furthest as-good end of the fits from
 shifted starts) beside the chain's point before the fit, and how long the fit took (costs and
 Nelder-Mead) per scene. It is how the rule in top_shape_fit (WEIGHT, MAX_MOVE_M, MIN_DROP,
-MAX_SPREAD_M) and its cost settings were chosen: on the train and validation splits and pools
-of rigs no split used, never on the evaluation split. The matched scenes come from
+MAX_SPREAD_M, FAR_MOVE_M) and its cost settings were chosen: on the train and validation
+splits and pools of rigs no split used, never on the evaluation split. The matched scenes come from
 rig_tuning.py's cache (--cache; made by its first run on a split).
 
     source scripts/env.sh
@@ -44,15 +44,16 @@ from benchmarks.rig_tuning import add_cached_split_arguments, scenes  # noqa: E4
 
 INF = float('inf')
 
-RULES = [(0.0, 0.0, 0.0, INF), (1.0, 100.0, 0.0, INF), (1.0, 5.0, 0.02, INF),
-         (0.5, 5.0, 0.01, INF), (0.7, 5.0, 0.02, INF), (0.7, 5.0, 0.01, INF),
-         (0.7, 3.0, 0.01, INF), (0.7, 8.0, 0.01, INF), (0.7, 5.0, 0.005, INF),
-         (0.7, 7.0, 0.005, INF), (0.7, 5.0, 0.01, 1.5), (0.7, 5.0, 0.005, 1.5),
-         (0.7, 7.0, 0.01, 1.5),
-         (0.7, 7.0, 0.005, 1.0), (0.7, 7.0, 0.005, 1.5), (0.7, 7.0, 0.005, 2.0),
-         (1.0, 7.0, 0.005, 1.5), (0.5, 7.0, 0.005, 1.5)]
+RULES = [(0.0, 0.0, 0.0, INF, 0.0), (1.0, 100.0, 0.0, INF, 100.0), (1.0, 5.0, 0.02, INF, 5.0),
+         (0.5, 5.0, 0.01, INF, 5.0), (0.7, 5.0, 0.02, INF, 5.0), (0.7, 5.0, 0.01, INF, 5.0),
+         (0.7, 3.0, 0.01, INF, 3.0), (0.7, 8.0, 0.01, INF, 8.0), (0.7, 5.0, 0.005, INF, 5.0),
+         (0.7, 7.0, 0.005, INF, 7.0), (0.7, 5.0, 0.01, 1.5, 5.0), (0.7, 5.0, 0.005, 1.5, 5.0),
+         (0.7, 7.0, 0.01, 1.5, 7.0), (0.7, 7.0, 0.005, 1.0, 7.0), (0.7, 7.0, 0.005, 1.5, 7.0),
+         (0.7, 7.0, 0.005, 2.0, 7.0), (1.0, 7.0, 0.005, 1.5, 7.0), (0.5, 7.0, 0.005, 1.5, 7.0),
+         (0.7, 7.0, 0.005, 1.5, 10.0), (0.7, 7.0, 0.005, 1.5, 12.0), (0.7, 7.0, 0.005, 1.5, 15.0),
+         (0.7, 7.0, 0.005, INF, 12.0)]
 """(weight, furthest move [mm], least drop per pixel, furthest as-good minimum from the shifted
-starts [mm]) of the rules printed."""
+starts [mm], furthest move taking the fit whole [mm]) of the rules printed."""
 
 
 def main() -> None:
@@ -112,12 +113,12 @@ def main() -> None:
           f'{len(seconds)} fitted: within 3 mm / over '
           f'10 mm (the fit took {1000.0 * np.median(seconds):.0f} ms median, '
           f'{1000.0 * np.max(seconds):.0f} ms at most, on this machine)')
-    for weight, max_move_mm, min_drop, max_spread_mm in RULES:
+    for weight, max_move_mm, min_drop, max_spread_mm, far_move_mm in RULES:
         errors = np.array([1000.0 * np.linalg.norm(top_shape_fit.moved_toward_fit(
-            chain, fit, weight, max_move_mm / 1000.0, min_drop, max_spread_mm / 1000.0) - target)
-            for _, chain, fit, target in rows])
+            chain, fit, weight, max_move_mm / 1000.0, min_drop, max_spread_mm / 1000.0,
+            far_move_mm / 1000.0) - target) for _, chain, fit, target in rows])
         print(f'  weight {weight:.1f}, move <= {max_move_mm:g} mm, drop >= {min_drop:g}, '
-              f'spread <= {max_spread_mm:g} mm: '
+              f'spread <= {max_spread_mm:g} mm, whole up to {far_move_mm:g} mm: '
               f'{int(np.sum(errors <= 3.0))} / {int(np.sum(errors > 10.0))}, '
               f'mean {np.mean(errors):.2f} mm')
     if args.save:

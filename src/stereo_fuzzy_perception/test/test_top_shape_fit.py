@@ -239,10 +239,24 @@ def test_the_point_moves_part_way_only_for_a_near_and_clear_fit():
     failed = TopShapeFit('disc', np.array([np.nan, np.nan]), drop_per_px=np.nan)
     not_found_again = TopShapeFit('disc', np.array([0.102, 0.1]), 0.05, spread_m=0.003)
     for fit in (far, unclear, failed, not_found_again, None):
-        assert moved_toward_fit(chain, fit, 0.5, 0.005, 0.02, 0.002) == pytest.approx(chain)
+        assert moved_toward_fit(chain, fit, 0.5, 0.005, 0.02, 0.002, 0.008) == pytest.approx(
+            chain)
     found_again = TopShapeFit('disc', np.array([0.102, 0.1]), 0.05, spread_m=0.001)
-    assert moved_toward_fit(chain, found_again, 0.5, 0.005, 0.02, 0.002) == pytest.approx(
+    assert moved_toward_fit(chain, found_again, 0.5, 0.005, 0.02, 0.002, 0.008) == pytest.approx(
         [0.101, 0.1, 0.05])
+
+
+def test_a_fit_found_again_further_off_than_a_move_is_taken_whole_up_to_a_bound():
+    chain = np.array([0.1, 0.1, 0.05])
+    rule = dict(weight=0.5, max_move_m=0.005, min_drop=0.02, max_spread_m=0.002,
+                far_move_m=0.012)
+    found_again = TopShapeFit('disc', np.array([0.109, 0.1]), 0.05, spread_m=0.001)
+    assert moved_toward_fit(chain, found_again, **rule) == pytest.approx([0.109, 0.1, 0.05])
+    too_far = TopShapeFit('disc', np.array([0.113, 0.1]), 0.05, spread_m=0.001)
+    not_found_again = TopShapeFit('disc', np.array([0.109, 0.1]), 0.05, spread_m=0.003)
+    unclear = TopShapeFit('disc', np.array([0.109, 0.1]), 0.01, spread_m=0.001)
+    for fit in (too_far, not_found_again, unclear):
+        assert moved_toward_fit(chain, fit, **rule) == pytest.approx(chain)
 
 
 def test_a_fit_on_a_flat_cost_ends_where_each_start_began_and_says_so():

@@ -24,11 +24,12 @@ at once, pixel by pixel, with no window:
   change are scored shape by shape (BAND_M), and the cost runs in numba.
 
 BestPointChooser moves its point toward the fitted centre only where the fit agrees with it
-(within MAX_MOVE_M), lowered the cost clearly (MIN_DROP per pixel) and is found again from
-starts shifted around its own (MAX_SPREAD_M): a fit that lowered the cost by little found
-nothing, a periodic table can match the top's disparity a centimetre away, and a fit whose
-shifted starts end elsewhere at nearly its cost sits in a flat valley of the cost, not at the
-top. benchmarks/outline_fit_probe.py measures the rule's variants on the tuning splits.
+(within MAX_MOVE_M, or FAR_MOVE_M taken whole), lowered the cost clearly (MIN_DROP per pixel)
+and is found again from starts shifted around its own (MAX_SPREAD_M): a fit that lowered the
+cost by little found nothing, a periodic table can match the top's disparity a centimetre
+away, and a fit whose shifted starts end elsewhere at nearly its cost sits in a flat valley of
+the cost, not at the top. benchmarks/outline_fit_probe.py measures the rule's variants on the
+tuning splits.
 """
 
 from __future__ import annotations
@@ -90,10 +91,16 @@ than the guessed ones (and two pixels) can change; a shape reaching further is s
 the pixels beyond kept their labels."""
 
 MAX_MOVE_M = 0.007
-"""A fitted centre further than this from the chain's point is not taken."""
+"""A fitted centre within this of the chain's point is taken WEIGHT of the way..."""
+
+FAR_MOVE_M = 0.012
+"""...but whole, up to this far: a fit found again from every start (MAX_SPREAD_M) that lies
+so far from the point says that the point is off, and the fit is the better of the two (on
+the tuning splits most such points were over 10 mm off, and their fits within 1.5 mm of the
+true centre: benchmarks/EXPERIMENTS.md, twenty-ninth session)."""
 
 MIN_DROP = 0.005
-"""...nor one that lowered the cost by less than this per pixel of the crop."""
+"""A fit that lowered the cost by less than this per pixel of the crop is not taken."""
 
 SHIFTED_START_M = 0.002
 """The winning shape is fitted again from its start moved this far along x and along y, each
@@ -106,16 +113,17 @@ NEAR_COST_PER_PX = 0.003
 as the fit (so is a lower one)."""
 
 MAX_SPREAD_M = 0.0015
-"""...and a fitted centre is not taken either when an as-good minimum lies further than this
-from it: the cost's valley is flat there, and where it ends is chance (chosen with
-MAX_MOVE_M and MIN_DROP: benchmarks/EXPERIMENTS.md, twenty-ninth session)."""
+"""A fitted centre is not taken when an as-good minimum lies further than this from it: the
+cost's valley is flat there, and where the fit ends is chance (chosen with MAX_MOVE_M,
+FAR_MOVE_M and MIN_DROP: benchmarks/EXPERIMENTS.md, twenty-ninth session)."""
 
 WEIGHT = 0.7
-"""The point is moved this share of the way to a fitted centre that passed the tests above."""
+"""The point is moved this share of the way to a fitted centre within MAX_MOVE_M that passed
+the tests above."""
 
 SAME_OBJECT_M = 0.004
 """A TopShapeMemory gives its fit again for a point this close to the one it was made for
-(the fitted centre is still taken only within MAX_MOVE_M of the new point)."""
+(the fitted centre is still taken only within FAR_MOVE_M of the new point)."""
 
 FULL_RESOLUTION_PX = 50
 """A face up to this wide or tall in the left image is scored on every pixel of its crop; a
@@ -594,16 +602,20 @@ def fitted(area: CorrelationArea, points: MatchedPoints, left: CameraCalibration
 
 def moved_toward_fit(point: np.ndarray, fit: TopShapeFit | None, weight: float = WEIGHT,
                      max_move_m: float = MAX_MOVE_M, min_drop: float = MIN_DROP,
-                     max_spread_m: float = MAX_SPREAD_M) -> np.ndarray:
-    """Return the point moved `weight` of the way to the fitted centre on the surface, when the
-    fit lies within max_move_m of it, lowered the cost by min_drop per pixel and its shifted
-    starts ended within max_spread_m of it."""
+                     max_spread_m: float = MAX_SPREAD_M,
+                     far_move_m: float = FAR_MOVE_M) -> np.ndarray:
+    """Return the point moved toward the fitted centre on the surface when the fit lowered the
+    cost by min_drop per pixel and its shifted starts ended within max_spread_m of it:
+    `weight` of the way when the centre lies within max_move_m of the point, all the way when
+    it lies within far_move_m; otherwise the point as it was."""
     point = np.array(point, dtype=float)
-    if fit is None or not (fit.drop_per_px >= min_drop) or not (
-            np.hypot(*(fit.centre - point[:2])) <= max_move_m) or not (
-            fit.spread_m <= max_spread_m):
+    if fit is None or not (fit.drop_per_px >= min_drop) or not (fit.spread_m <= max_spread_m):
         return point
-    point[:2] = (1.0 - weight) * point[:2] + weight * fit.centre
+    move = float(np.hypot(*(fit.centre - point[:2])))
+    if move <= max_move_m:
+        point[:2] = (1.0 - weight) * point[:2] + weight * fit.centre
+    elif move <= far_move_m:
+        point[:2] = fit.centre
     return point
 
 
