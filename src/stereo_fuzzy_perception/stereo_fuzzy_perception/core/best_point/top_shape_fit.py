@@ -96,8 +96,8 @@ MAX_MOVE_M = 0.007
 FAR_MOVE_M = 0.012
 """...but whole, up to this far: a fit found again from every start (MAX_SPREAD_M) that lies
 so far from the point says that the point is off, and the fit is the better of the two (on
-the tuning splits most such points were over 10 mm off, and their fits within 1.5 mm of the
-true centre: benchmarks/EXPERIMENTS.md, twenty-ninth session)."""
+the tuning splits such points were mostly far off and their fits close to the true centre;
+a few points it moves get worse: benchmarks/EXPERIMENTS.md, twenty-ninth session)."""
 
 MIN_DROP = 0.005
 """A fit that lowered the cost by less than this per pixel of the crop is not taken."""
@@ -142,7 +142,8 @@ def _disc_fitter() -> ThreadPoolExecutor:
 
 
 _DISC_FITTER = _disc_fitter()
-"""Fits the disc while the calling thread fits the rectangle (fit_top_shape)."""
+"""Fits the disc while the calling thread fits the rectangle, then half of the winner's
+shifted fits while the calling thread fits the other half (fit_top_shape)."""
 
 
 def _new_disc_fitter_after_fork() -> None:
