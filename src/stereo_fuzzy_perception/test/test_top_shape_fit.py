@@ -1,5 +1,6 @@
 """The top face fitted as a disc or a rectangle to both images (top_shape_fit.py)."""
 
+import dataclasses
 import math
 import multiprocessing
 from types import SimpleNamespace
@@ -8,14 +9,21 @@ import cv2
 import numpy as np
 import pytest
 from grid_scenes import TILTED_RIG as RIG
-from grid_scenes import Box, plain_box_pair
+from grid_scenes import Box, grid_matches, plain_box_pair
 from stereo_fuzzy_perception.core.best_point import top_shape_fit
+from stereo_fuzzy_perception.core.best_point.correlation_area import (
+    LOOK_FITTED_PIECES,
+    UNCERTAIN_TOP,
+    AreaConfig,
+)
+from stereo_fuzzy_perception.core.best_point.point_selectors import BestPointChooser
 from stereo_fuzzy_perception.core.best_point.top_shape_fit import (
     DISC,
     RECTANGLE,
     TopShapeCosts,
     TopShapeFit,
     TopShapeMemory,
+    centre_for_pieces,
     fit_top_shape,
     moved_toward_fit,
     principal_axes,
@@ -285,7 +293,7 @@ def test_the_memory_gives_a_fit_again_for_the_same_object_and_pose_only():
     moved_pose = POSE.copy()
     moved_pose[0, 3] += 0.01
     assert memory.recall(point, moved_pose) == (False, None)
-    assert memory.counts == dict(fitted=1, recalled=1, moved=0)
+    assert memory.counts == dict(fitted=1, recalled=1, moved=0, pieces=0)
 
 
 def test_the_principal_axes_of_a_uniform_strip_are_its_sides_and_direction():
@@ -298,3 +306,50 @@ def test_the_principal_axes_of_a_uniform_strip_are_its_sides_and_direction():
     assert long_side == pytest.approx(0.04, rel=0.02)
     assert short_side == pytest.approx(0.01, rel=0.02)
     assert math.sin(2 * (found_angle - angle)) == pytest.approx(0.0, abs=0.02)
+
+
+def test_a_face_in_pieces_takes_the_fitted_centre_only_from_a_clear_fit_found_again():
+    chain = np.array([0.1, 0.1, 0.05])
+    clear = TopShapeFit('rectangle', np.array([0.109, 0.1]), 0.05, spread_m=0.001)
+    assert centre_for_pieces(chain, clear) == pytest.approx([0.109, 0.1, 0.05])
+    # a drop that moves an accepted face's point is too weak to give a point of its own
+    weak = TopShapeFit('rectangle', np.array([0.109, 0.1]), 0.5 * (
+        top_shape_fit.MIN_DROP + top_shape_fit.PIECES_MIN_DROP), spread_m=0.001)
+    not_found_again = TopShapeFit('rectangle', np.array([0.109, 0.1]), 0.05, spread_m=0.003)
+    failed = TopShapeFit('disc', np.array([np.nan, np.nan]), drop_per_px=np.nan)
+    for fit in (weak, not_found_again, failed, None):
+        assert centre_for_pieces(chain, fit) is None
+
+
+def _top_in_pieces_seen_by_both_cameras(box):
+    """Return (matches, left, right) of a textured box whose top is matched in one row of every
+    nine and within 4 px of its left and right rims (a face too much in pieces for any look to
+    make whole), with both images ray-cast; the top's texture is strong enough that no plain
+    region of the image holds it."""
+    points, left, right = grid_matches(RIG, box, 0.05, 1)
+    heights = (points.xyz.astype(float) @ POSE[:3, :3].T + POSE[:3, 3])[:, 2]
+    on_top = heights > 0.5 * box.height
+    columns = points.u_left[on_top]
+    inner = (points.u_left >= columns.min() + 4) & (points.u_left <= columns.max() - 4)
+    dropped = on_top & inner & (points.v_left.astype(int) % 9 >= 1)
+    left_image, right_image, *_ = plain_box_pair(RIG, box, top_grey=200.0, right_gain=0.9,
+                                                 right_offset=12.0, top_texture=40.0)
+    return (dataclasses.replace(points.subset(~dropped), left_image=left_image,
+                                right_image=right_image), left, right)
+
+
+def test_a_face_in_pieces_is_given_the_centre_of_the_top_fitted_to_both_images():
+    box = Box((0.21, 0.16), 0.04, 0.03)
+    points, left, right = _top_in_pieces_seen_by_both_cameras(box)
+    chooser = dataclasses.replace(BestPointChooser.create('fuzzy_fitted', AreaConfig(), RIG),
+                                  world_from_camera=POSE, top_shape_memory=TopShapeMemory())
+    decision = chooser.decide(points, left, right)
+    assert decision.look == LOOK_FITTED_PIECES, decision.reason
+    assert np.hypot(*(decision.best_point_world[:2] - box.centre_xy)) < 1e-3
+    assert decision.best_point_world[2] == pytest.approx(box.height, abs=1e-3)
+    assert chooser.top_shape_memory.counts['pieces'] == 1
+    # without the fit the same face is refused, as in pieces
+    unfitted = dataclasses.replace(chooser, area_config=AreaConfig(fit_top_shape=False))
+    refused = unfitted.decide(points, left, right)
+    assert refused.status == UNCERTAIN_TOP and 'pieces' in refused.reason
+    assert refused.best_point_world is None

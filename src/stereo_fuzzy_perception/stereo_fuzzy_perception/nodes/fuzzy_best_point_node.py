@@ -418,7 +418,9 @@ class FuzzyBestPointNode(Node):
             if memory is not None and self._chooser.area_config.fit_top_shape:
                 values += [('top shapes fitted', memory.counts['fitted']),
                            ('top shapes reused for the same object', memory.counts['recalled']),
-                           ('points moved toward a fitted top', memory.counts['moved'])]
+                           ('points moved toward a fitted top', memory.counts['moved']),
+                           ('faces in pieces given their fitted top',
+                            memory.counts['pieces'])]
             values += list(self.matches_sequence.report(topic_names.MATCHES).items())
         # Whether DDS has matched a writer to this reader: 0 while matches are published means
         # discovery has not connected the two nodes (nothing can arrive, nothing counts as lost).

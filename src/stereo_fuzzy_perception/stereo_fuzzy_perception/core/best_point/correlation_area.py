@@ -72,6 +72,7 @@ LOOK_PIECES_OUTLINED = 'pieces outlined from the image'
 LOOK_TEXTURED_REGION = 'textured region of the image'
 LOOK_PLAIN_OBJECT = 'plain object in the image'
 LOOK_PLAIN_TOP_AT_MATCHED_HEIGHT = 'plain top at its matched height'
+LOOK_FITTED_PIECES = 'top fitted around a face in pieces'
 """Which look at the pair gave the face (CorrelationArea.look, point_selectors.decision_area):
 the matches' own face, or a look after the matches' face was refused."""
 

@@ -29,6 +29,7 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     ASSUMED_SURFACE,
     DEGENERATE_AREA,
     LOOK_FACE_AT_MODE,
+    LOOK_FITTED_PIECES,
     LOOK_MATCHES,
     LOOK_PIECES_OUTLINED,
     LOOK_PLAIN_FACE,
@@ -85,6 +86,8 @@ from stereo_fuzzy_perception.core.best_point.surface_lookalike import (
 from stereo_fuzzy_perception.core.best_point.surface_lookalike import looks_like_the_surface
 from stereo_fuzzy_perception.core.best_point.top_shape_fit import (
     TopShapeMemory,
+    centre_for_pieces,
+    fitted_around,
     point_with_fitted_top,
 )
 from stereo_fuzzy_perception.core.best_point.work_surface import SurfacePlane
@@ -305,7 +308,16 @@ class BestPointChooser:
         decision.area_points_world = area.xyz_world
         decision.look = area.look
         if not area.ok:
-            return self._refuse(decision, area.status, area.reason)
+            return (self._decide_on_fitted_pieces(decision, area, points, left, right)
+                    or self._refuse(decision, area.status, area.reason))
+        return self._decide_on(decision, area, points, left, right)
+
+    def _decide_on(self, decision: BestPointDecision, area: CorrelationArea,
+                   points: MatchedPoints, left: CameraCalibration, right: CameraCalibration,
+                   fit_top_shape: bool = True) -> BestPointDecision:
+        """Choose the point of an accepted face (steps 2-6), moved toward the top fitted around
+        it when fit_top_shape (and the area config's) allow."""
+        config = self.area_config
         areas = split_into_areas(area, principal_point(left), principal_point(right))
         self._record_areas(decision, areas)
         if self.selector == 'centroid':
@@ -340,10 +352,40 @@ class BestPointChooser:
             horizontal = result.point
             height_offset = self.rule_base.height_offset_m
         point = np.array([horizontal[0], horizontal[1], area.top_height + height_offset])
-        if config.fit_top_shape and self.selector != 'max_score':
+        if fit_top_shape and config.fit_top_shape and self.selector != 'max_score':
             point = point_with_fitted_top(area, points, left, right, self.world_from_camera,
                                           point, self.top_shape_memory)
         return self._choose(decision, point)
+
+    def _decide_on_fitted_pieces(self, decision: BestPointDecision, area: CorrelationArea,
+                                 points: MatchedPoints, left: CameraCalibration,
+                                 right: CameraCalibration) -> BestPointDecision | None:
+        """Return a decision at the centre of the top fitted around a face refused as in
+        pieces after every look (top_shape_fit.centre_for_pieces), or None (the refusal
+        stands). The selector's point on the face in pieces is where the fit starts; a face
+        whose matches are sparse is still matched at its top's height, and the fit finds its
+        outline in both images (why, measured: the package README, "A face in pieces given
+        its fitted top")."""
+        pieces = area.face_in_pieces
+        if (area.status != UNCERTAIN_TOP or pieces is None or not pieces.ok
+                or not self.area_config.fit_top_shape or self.selector == 'max_score'):
+            return None
+        started = self._decide_on(replace(decision), pieces, points, left, right,
+                                  fit_top_shape=False)
+        if started.best_point_world is None:
+            return None
+        fit = fitted_around(pieces, points, left, right, self.world_from_camera,
+                            started.best_point_world, self.top_shape_memory)
+        point = centre_for_pieces(started.best_point_world, fit)
+        if point is None:
+            return None
+        if self.top_shape_memory is not None:
+            self.top_shape_memory.counts['pieces'] += 1
+        started.best_point_world = started.best_point_camera = None
+        started.top_height = pieces.top_height
+        started.area_points_world = pieces.xyz_world
+        started.look = LOOK_FITTED_PIECES
+        return self._choose(started, point)
 
     def _choose(self, decision: BestPointDecision, point: np.ndarray) -> BestPointDecision:
         """Accept `point` as the best point only if it passes output_problem."""
@@ -440,15 +482,14 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     """
     shift = disparity_shift(left, right)
     area = find_correlation_area(points, world_from_camera, config, shift)
-    scattered = area.scattered_face
+    scattered, pieces = area.scattered_face, area.face_in_pieces
     if points.left_image is not None and config.outline_from_image:
         if area.ok:
             area = face_from_image(area, points.left_image, left, right, world_from_camera,
                                    config.min_points) or area
-        elif area.face_in_pieces is not None:
+        elif pieces is not None:
             # a face in pieces keeps its matches' height: the rim's matches that are there
             # lie on the top
-            pieces = area.face_in_pieces
             area = (_plain_face(plain_face_from_image(
                         pieces, points.left_image, left, right, world_from_camera,
                         config.min_points, config.max_object_across_m), points, left, right,
@@ -486,6 +527,9 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
             # matched height when both images put the region's rim there.
             area = _looked(LOOK_PLAIN_TOP_AT_MATCHED_HEIGHT, plain_top_at_matched_height(
                 scattered, points, left, right, world_from_camera, config)) or area
+    if not area.ok and area.status == UNCERTAIN_TOP and pieces is not None:
+        # the matches' face in pieces, for the top fitted around it (BestPointChooser.decide)
+        area = replace(area, face_in_pieces=pieces)
     if area.ok and config.min_object_across_m > 0.0:
         width = width_m(area.xyz_world[:, :2])
         if (width < config.min_object_across_m and config.outline_from_image

@@ -121,6 +121,13 @@ WEIGHT = 0.7
 """The point is moved this share of the way to a fitted centre within MAX_MOVE_M that passed
 the tests above."""
 
+PIECES_MIN_DROP = 0.01
+"""A face refused as in pieces (AreaConfig.min_top_fill) after every look is given the
+centre of the top fitted around it, whole, when the fit is found again from every shifted
+start (MAX_SPREAD_M) and lowered the cost by at least this per pixel: twice MIN_DROP, for the
+fit is then the only evidence of where the top is (a bare table's blotches of mismatches
+were fitted with drops just below it: benchmarks/EXPERIMENTS.md, thirtieth session)."""
+
 SAME_OBJECT_M = 0.004
 """A TopShapeMemory gives its fit again for a point this close to the one it was made for
 (the fitted centre is still taken only within FAR_MOVE_M of the new point)."""
@@ -620,6 +627,17 @@ def moved_toward_fit(point: np.ndarray, fit: TopShapeFit | None, weight: float =
     return point
 
 
+def centre_for_pieces(point: np.ndarray, fit: TopShapeFit | None,
+                      min_drop: float = PIECES_MIN_DROP,
+                      max_spread_m: float = MAX_SPREAD_M) -> np.ndarray | None:
+    """Return the point of a face refused as in pieces moved to its fitted centre, when the fit
+    lowered the cost by min_drop per pixel and its shifted starts ended within max_spread_m of
+    it; None when the fit says too little for a point."""
+    if fit is None or not (fit.drop_per_px >= min_drop) or not (fit.spread_m <= max_spread_m):
+        return None
+    return np.array([*fit.centre, point[2]], dtype=float)
+
+
 @dataclass
 class TopShapeMemory:
     """The last top fitted, given again for the pairs of the same object that follow.
@@ -634,13 +652,15 @@ class TopShapeMemory:
         point: The point (world) the remembered fit was made for, or None.
         pose: The camera pose it was made with.
         fit: The fit (None: the pair could not be fitted).
-        counts: Fits made, fits given again, points moved toward a fit.
+        counts: Fits made, fits given again, points moved toward a fit, faces in pieces
+            given their fitted centre (BestPointChooser).
     """
 
     point: np.ndarray | None = None
     pose: np.ndarray | None = None
     fit: TopShapeFit | None = None
-    counts: dict[str, int] = field(default_factory=lambda: dict(fitted=0, recalled=0, moved=0))
+    counts: dict[str, int] = field(default_factory=lambda: dict(fitted=0, recalled=0, moved=0,
+                                                                  pieces=0))
 
     def recall(self, point: np.ndarray, pose: np.ndarray) -> tuple[bool, TopShapeFit | None]:
         """Return (True, the fit) when one was made for the same object, else (False, None)."""
@@ -657,18 +677,26 @@ class TopShapeMemory:
         self.counts['fitted'] += 1
 
 
-def point_with_fitted_top(area: CorrelationArea, points: MatchedPoints,
-                          left: CameraCalibration, right: CameraCalibration,
-                          world_from_camera: np.ndarray, point: np.ndarray,
-                          memory: TopShapeMemory | None = None) -> np.ndarray:
-    """Return the decision's point moved toward the top fitted around it (moved_toward_fit),
-    the fit given again by the memory where it has one for the same object."""
+def fitted_around(area: CorrelationArea, points: MatchedPoints, left: CameraCalibration,
+                  right: CameraCalibration, world_from_camera: np.ndarray, point: np.ndarray,
+                  memory: TopShapeMemory | None = None) -> TopShapeFit | None:
+    """Return the top fitted around the decision's point (fitted), given again by the memory
+    where it has one for the same object."""
     known, fit = (memory.recall(point, world_from_camera) if memory is not None
                   else (False, None))
     if not known:
         fit = fitted(area, points, left, right, world_from_camera, point[:2])
         if memory is not None:
             memory.remember(point, world_from_camera, fit)
+    return fit
+
+
+def point_with_fitted_top(area: CorrelationArea, points: MatchedPoints,
+                          left: CameraCalibration, right: CameraCalibration,
+                          world_from_camera: np.ndarray, point: np.ndarray,
+                          memory: TopShapeMemory | None = None) -> np.ndarray:
+    """Return the decision's point moved toward the top fitted around it (moved_toward_fit)."""
+    fit = fitted_around(area, points, left, right, world_from_camera, point, memory)
     moved = moved_toward_fit(point, fit)
     if memory is not None and not np.array_equal(moved, point):
         memory.counts['moved'] += 1
