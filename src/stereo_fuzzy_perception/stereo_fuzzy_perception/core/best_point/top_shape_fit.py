@@ -125,8 +125,8 @@ PIECES_MIN_DROP = 0.01
 """A face refused as in pieces (AreaConfig.min_top_fill) after every look is given the
 centre of the top fitted around it, whole, when the fit is found again from every shifted
 start (MAX_SPREAD_M) and lowered the cost by at least this per pixel: twice MIN_DROP, for the
-fit is then the only evidence of where the top is (a bare table's blotches of mismatches
-were fitted with drops just below it: benchmarks/EXPERIMENTS.md, thirtieth session)."""
+fit is then the only evidence of where the top is (the few bare tables' blotches whose fits
+were found again had drops just below it: benchmarks/EXPERIMENTS.md, thirtieth session)."""
 
 SAME_OBJECT_M = 0.004
 """A TopShapeMemory gives its fit again for a point this close to the one it was made for
