@@ -278,6 +278,7 @@ def test_a_fit_on_a_flat_cost_ends_where_each_start_began_and_says_so():
     fit = fit_top_shape(costs, np.array([0.1, 0.1]), (0.0, 0.02, 0.02))
     assert fit.centre == pytest.approx([0.1, 0.1])
     assert fit.spread_m == pytest.approx(top_shape_fit.SHIFTED_START_M)
+    assert fit.found_again == 4
     assert moved_toward_fit(np.array([0.101, 0.1, 0.02]), fit, min_drop=-1.0) == pytest.approx(
         [0.101, 0.1, 0.02])
 
@@ -316,8 +317,10 @@ def test_a_face_in_pieces_takes_the_fitted_centre_only_from_a_clear_fit_found_ag
     weak = TopShapeFit('rectangle', np.array([0.109, 0.1]), 0.5 * (
         top_shape_fit.MIN_DROP + top_shape_fit.PIECES_MIN_DROP), spread_m=0.001)
     not_found_again = TopShapeFit('rectangle', np.array([0.109, 0.1]), 0.05, spread_m=0.003)
+    # no shifted start ended as low: the spread is 0, and still nothing confirms the fit
+    found_only_once = TopShapeFit('rectangle', np.array([0.109, 0.1]), 0.05, 0.0, found_again=0)
     failed = TopShapeFit('disc', np.array([np.nan, np.nan]), drop_per_px=np.nan)
-    for fit in (weak, not_found_again, failed, None):
+    for fit in (weak, not_found_again, found_only_once, failed, None):
         assert centre_for_pieces(chain, fit) is None
 
 

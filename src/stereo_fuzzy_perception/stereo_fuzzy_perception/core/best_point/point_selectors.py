@@ -381,6 +381,7 @@ class BestPointChooser:
             return None
         if self.top_shape_memory is not None:
             self.top_shape_memory.counts['pieces'] += 1
+        # the fitted centre is given only if _choose passes it
         started.best_point_world = started.best_point_camera = None
         started.top_height = pieces.top_height
         started.area_points_world = pieces.xyz_world

@@ -123,10 +123,13 @@ the tests above."""
 
 PIECES_MIN_DROP = 0.01
 """A face refused as in pieces (AreaConfig.min_top_fill) after every look is given the
-centre of the top fitted around it, whole, when the fit is found again from every shifted
-start (MAX_SPREAD_M) and lowered the cost by at least this per pixel: twice MIN_DROP, for the
+centre of the top fitted around it, whole, when the fit is found again (a shifted start ends
+as low, and every one that does within MAX_SPREAD_M) and lowered the cost by at least this
+per pixel: twice MIN_DROP, for the
 fit is then the only evidence of where the top is (the few bare tables' blotches whose fits
-were found again had drops just below it: benchmarks/EXPERIMENTS.md, thirtieth session)."""
+were found again had drops just below it: benchmarks/EXPERIMENTS.md, thirtieth session). A
+fit that no shifted start ended at as low a cost is not found again, though its spread is 0:
+the probes over refused faces found such fits mostly far off."""
 
 SAME_OBJECT_M = 0.004
 """A TopShapeMemory gives its fit again for a point this close to the one it was made for
@@ -195,13 +198,15 @@ class TopShapeCosts:
 @dataclass(frozen=True)
 class TopShapeFit:
     """The best shape found, its centre on the surface, how much it lowered the cost per
-    pixel of the crop against the area's own disc, and how far from the centre the fits from
-    shifted starts ended at as low a cost (0: all of them at the centre)."""
+    pixel of the crop against the area's own disc, how far from the centre the fits from
+    shifted starts ended at as low a cost (0: all of them at the centre, or none as low), and
+    how many of those fits ended as low."""
 
     shape: str
     centre: np.ndarray  # (2,) [m]
     drop_per_px: float
     spread_m: float = 0.0
+    found_again: int = 4
 
 
 @numba.njit(cache=True, nogil=True)
@@ -588,7 +593,7 @@ def fit_top_shape(costs: TopShapeCosts, guess: np.ndarray, axes: tuple[float, fl
     as_good = [np.hypot(*(other.x[:2] - best.x[:2])) for other in others
                if other.fun <= best.fun + NEAR_COST_PER_PX * costs.pixels]
     return TopShapeFit(SHAPE_NAMES[shape], np.asarray(best.x[:2], dtype=float), drop,
-                       float(max(as_good, default=0.0)))
+                       float(max(as_good, default=0.0)), len(as_good))
 
 
 def fitted(area: CorrelationArea, points: MatchedPoints, left: CameraCalibration,
@@ -631,9 +636,11 @@ def centre_for_pieces(point: np.ndarray, fit: TopShapeFit | None,
                       min_drop: float = PIECES_MIN_DROP,
                       max_spread_m: float = MAX_SPREAD_M) -> np.ndarray | None:
     """Return the point of a face refused as in pieces moved to its fitted centre, when the fit
-    lowered the cost by min_drop per pixel and its shifted starts ended within max_spread_m of
-    it; None when the fit says too little for a point."""
-    if fit is None or not (fit.drop_per_px >= min_drop) or not (fit.spread_m <= max_spread_m):
+    lowered the cost by min_drop per pixel, at least one shifted start found it again, and
+    every one that ended as low ended within max_spread_m of it; None when the fit says too
+    little for a point."""
+    if fit is None or not (fit.drop_per_px >= min_drop) or not (
+            fit.spread_m <= max_spread_m) or fit.found_again < 1:
         return None
     return np.array([*fit.centre, point[2]], dtype=float)
 
