@@ -106,10 +106,12 @@ class FuzzyBestPointSettings:
     fit_top_shape: bool = parameter(
         _AREA.fit_top_shape, 'Fit the top face as a disc or a rectangle to both rectified images '
         'pixel by pixel (top_shape_fit.py: no correlation window straddles its rim) and move the '
-        'best point 0.7 of the way to the fitted centre where it lies within 5 mm and the fit '
-        'lowered its cost clearly. Fitted once per object: the pairs that follow with a point '
-        'within 4 mm of the first reuse the fit, so only the first pair of each object waits '
-        "for it (its cost: the main README's benchmark table)")
+        'best point to the fitted centre where the fit lowered its cost clearly and is found '
+        'again from starts 2 mm off: 0.7 of the way within 7 mm, whole within 12 mm. A face '
+        'refused as in pieces is given its fitted centre when the fit is clearer still. Fitted '
+        'once per object: the pairs that follow with a point within 4 mm of the first reuse the '
+        "fit, so only the first pair of each object waits for it (its cost: the main README's "
+        'benchmark table)')
     second_look_stride_one: bool = parameter(
         True, 'When matches of a point_stride above 1 find the object but refuse its top face '
         'as too thin (too_few_points, uncertain_top), or give its point on fewer than '
