@@ -108,6 +108,9 @@ way: four more fits as thorough as the first (cheaper ones, unrestarted and stop
 coarser simplex, took fewer points within 3 mm: benchmarks/EXPERIMENTS.md, twenty-ninth
 session)."""
 
+SHIFT_DIRECTIONS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
+"""The directions (x, y) the winning shape's start is moved in, SHIFTED_START_M each."""
+
 NEAR_COST_PER_PX = 0.003
 """A shifted start's minimum within this of the fit's cost per pixel of the crop is as good
 as the fit (so is a lower one)."""
@@ -125,11 +128,11 @@ PIECES_MIN_DROP = 0.01
 """A face refused as in pieces (AreaConfig.min_top_fill) after every look is given the
 centre of the top fitted around it, whole, when the fit is found again (a shifted start ends
 as low, and every one that does within MAX_SPREAD_M) and lowered the cost by at least this
-per pixel: twice MIN_DROP, for the
-fit is then the only evidence of where the top is (the few bare tables' blotches whose fits
-were found again had drops just below it: benchmarks/EXPERIMENTS.md, thirtieth session). A
-fit that no shifted start ended at as low a cost is not found again, though its spread is 0:
-the probes over refused faces found such fits mostly far off."""
+per pixel: twice MIN_DROP, for the fit is then the only evidence of where the top is (the few
+bare tables' blotches whose fits were found again had drops just below it:
+benchmarks/EXPERIMENTS.md, thirtieth session). A fit that no shifted start ended at as low a
+cost is not found again, though its spread is 0: the probes over refused faces found such
+fits mostly far off."""
 
 SAME_OBJECT_M = 0.004
 """A TopShapeMemory gives its fit again for a point this close to the one it was made for
@@ -206,7 +209,7 @@ class TopShapeFit:
     centre: np.ndarray  # (2,) [m]
     drop_per_px: float
     spread_m: float = 0.0
-    found_again: int = 4
+    found_again: int = len(SHIFT_DIRECTIONS)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -580,10 +583,9 @@ def fit_top_shape(costs: TopShapeCosts, guess: np.ndarray, axes: tuple[float, fl
     drop = (costs.cost(DISC, disc) - best.fun) / costs.pixels
     start, scales = starts[shape]
     shifted = []
-    for dx, dy in ((SHIFTED_START_M, 0.0), (-SHIFTED_START_M, 0.0), (0.0, SHIFTED_START_M),
-                   (0.0, -SHIFTED_START_M)):
+    for direction in SHIFT_DIRECTIONS:
         moved = start.copy()
-        moved[:2] += (dx, dy)
+        moved[:2] += SHIFTED_START_M * np.asarray(direction)
         shifted.append(moved)
     # two of the shifted fits run in the second thread while this one runs the other two
     elsewhere = [_DISC_FITTER.submit(_minimise, costs, shape, moved, scales, restarts)
