@@ -13,6 +13,8 @@ from grid_scenes import Box, grid_matches, plain_box_pair
 from stereo_fuzzy_perception.core.best_point import top_shape_fit
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     LOOK_FITTED_PIECES,
+    LOOK_FITTED_SMALL_FACE,
+    NO_OBJECT,
     UNCERTAIN_TOP,
     AreaConfig,
 )
@@ -23,7 +25,7 @@ from stereo_fuzzy_perception.core.best_point.top_shape_fit import (
     TopShapeCosts,
     TopShapeFit,
     TopShapeMemory,
-    centre_for_pieces,
+    centre_for_refused_face,
     fit_top_shape,
     moved_toward_fit,
     principal_axes,
@@ -294,7 +296,7 @@ def test_the_memory_gives_a_fit_again_for_the_same_object_and_pose_only():
     moved_pose = POSE.copy()
     moved_pose[0, 3] += 0.01
     assert memory.recall(point, moved_pose) == (False, None)
-    assert memory.counts == dict(fitted=1, recalled=1, moved=0, pieces=0)
+    assert memory.counts == dict(fitted=1, recalled=1, moved=0, pieces=0, small=0)
 
 
 def test_the_principal_axes_of_a_uniform_strip_are_its_sides_and_direction():
@@ -312,16 +314,16 @@ def test_the_principal_axes_of_a_uniform_strip_are_its_sides_and_direction():
 def test_a_face_in_pieces_takes_the_fitted_centre_only_from_a_clear_fit_found_again():
     chain = np.array([0.1, 0.1, 0.05])
     clear = TopShapeFit('rectangle', np.array([0.109, 0.1]), 0.05, spread_m=0.001)
-    assert centre_for_pieces(chain, clear) == pytest.approx([0.109, 0.1, 0.05])
+    assert centre_for_refused_face(chain, clear) == pytest.approx([0.109, 0.1, 0.05])
     # a drop that moves an accepted face's point is too weak to give a point of its own
     weak = TopShapeFit('rectangle', np.array([0.109, 0.1]), 0.5 * (
-        top_shape_fit.MIN_DROP + top_shape_fit.PIECES_MIN_DROP), spread_m=0.001)
+        top_shape_fit.MIN_DROP + top_shape_fit.REFUSED_FACE_MIN_DROP), spread_m=0.001)
     not_found_again = TopShapeFit('rectangle', np.array([0.109, 0.1]), 0.05, spread_m=0.003)
     # no shifted start ended as low: the spread is 0, and still nothing confirms the fit
     found_only_once = TopShapeFit('rectangle', np.array([0.109, 0.1]), 0.05, 0.0, found_again=0)
     failed = TopShapeFit('disc', np.array([np.nan, np.nan]), drop_per_px=np.nan)
     for fit in (weak, not_found_again, found_only_once, failed, None):
-        assert centre_for_pieces(chain, fit) is None
+        assert centre_for_refused_face(chain, fit) is None
 
 
 def _top_in_pieces_seen_by_both_cameras(box):
@@ -355,4 +357,26 @@ def test_a_face_in_pieces_is_given_the_centre_of_the_top_fitted_to_both_images()
     unfitted = dataclasses.replace(chooser, area_config=AreaConfig(fit_top_shape=False))
     refused = unfitted.decide(points, left, right)
     assert refused.status == UNCERTAIN_TOP and 'pieces' in refused.reason
+    assert refused.best_point_world is None
+
+
+def test_a_narrow_top_smaller_than_any_in_the_image_is_given_its_fitted_centre():
+    # 13 mm across and ray-cast in both images: its top covers about 140 px of the left
+    # image, less than a face taken on its matches alone may (MIN_OBJECT_AREA_PX)
+    box = Box((0.21, 0.16), 0.013, 0.03)
+    points, left, right = grid_matches(RIG, box, 0.05, 1)
+    left_image, right_image, *_ = plain_box_pair(RIG, box, top_grey=200.0, right_gain=0.9,
+                                                 right_offset=12.0, top_texture=40.0)
+    points = dataclasses.replace(points, left_image=left_image, right_image=right_image)
+    chooser = dataclasses.replace(BestPointChooser.create('fuzzy_fitted', AreaConfig(), RIG),
+                                  world_from_camera=POSE, top_shape_memory=TopShapeMemory())
+    decision = chooser.decide(points, left, right)
+    assert decision.look == LOOK_FITTED_SMALL_FACE, decision.reason
+    assert np.hypot(*(decision.best_point_world[:2] - box.centre_xy)) < 1e-3
+    assert decision.best_point_world[2] == pytest.approx(box.height, abs=1e-3)
+    assert chooser.top_shape_memory.counts['small'] == 1
+    # without the fit the same face is refused, as too small
+    unfitted = dataclasses.replace(chooser, area_config=AreaConfig(fit_top_shape=False))
+    refused = unfitted.decide(points, left, right)
+    assert refused.status == NO_OBJECT and 'less than any object' in refused.reason
     assert refused.best_point_world is None

@@ -420,7 +420,9 @@ class FuzzyBestPointNode(Node):
                            ('top shapes reused for the same object', memory.counts['recalled']),
                            ('points moved toward a fitted top', memory.counts['moved']),
                            ('faces in pieces given their fitted top',
-                            memory.counts['pieces'])]
+                            memory.counts['pieces']),
+                           ('faces too small in the image given their fitted top',
+                            memory.counts['small'])]
             values += list(self.matches_sequence.report(topic_names.MATCHES).items())
         # Whether DDS has matched a writer to this reader: 0 while matches are published means
         # discovery has not connected the two nodes (nothing can arrive, nothing counts as lost).

@@ -73,6 +73,7 @@ LOOK_TEXTURED_REGION = 'textured region of the image'
 LOOK_PLAIN_OBJECT = 'plain object in the image'
 LOOK_PLAIN_TOP_AT_MATCHED_HEIGHT = 'plain top at its matched height'
 LOOK_FITTED_PIECES = 'top fitted around a face in pieces'
+LOOK_FITTED_SMALL_FACE = 'top fitted around a face smaller than any top'
 """Which look at the pair gave the face (CorrelationArea.look, point_selectors.decision_area):
 the matches' own face, or a look after the matches' face was refused."""
 
@@ -273,6 +274,10 @@ class CorrelationArea:
             (max_top_spread_m), the face as its matches give it (status ok): a plain top's
             matched heights scatter, and both images may still show its height
             (plain_top_height.py). None otherwise.
+        face_too_small: When the area is refused because its face covers less of the left
+            image than any object's top (point_selectors.decision_area), the face as it was
+            (status ok): a narrow box's top can be that small, and the top fitted to both
+            images may still show it whole (BestPointChooser). None otherwise.
         face_at_mode: When the area is refused as a face in pieces, the same face taken at
             the mode of its region's heights (object_segmentation.top_mode), if that face
             passes every test: a top matched worse than the surface has its densest upper
@@ -303,6 +308,7 @@ class CorrelationArea:
     outline: str = OUTLINE_MATCHES
     face_in_pieces: CorrelationArea | None = None
     scattered_face: CorrelationArea | None = None
+    face_too_small: CorrelationArea | None = None
     face_at_mode: CorrelationArea | None = None
     texture_tried: bool = False
     look: str = LOOK_MATCHES

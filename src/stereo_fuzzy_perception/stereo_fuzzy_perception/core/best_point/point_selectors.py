@@ -30,6 +30,7 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (
     DEGENERATE_AREA,
     LOOK_FACE_AT_MODE,
     LOOK_FITTED_PIECES,
+    LOOK_FITTED_SMALL_FACE,
     LOOK_MATCHES,
     LOOK_PIECES_OUTLINED,
     LOOK_PLAIN_FACE,
@@ -86,7 +87,7 @@ from stereo_fuzzy_perception.core.best_point.surface_lookalike import (
 from stereo_fuzzy_perception.core.best_point.surface_lookalike import looks_like_the_surface
 from stereo_fuzzy_perception.core.best_point.top_shape_fit import (
     TopShapeMemory,
-    centre_for_pieces,
+    centre_for_refused_face,
     fitted_around,
     point_with_fitted_top,
 )
@@ -308,7 +309,7 @@ class BestPointChooser:
         decision.area_points_world = area.xyz_world
         decision.look = area.look
         if not area.ok:
-            return (self._decide_on_fitted_pieces(decision, area, points, left, right)
+            return (self._decide_on_fitted_face(decision, area, points, left, right)
                     or self._refuse(decision, area.status, area.reason))
         return self._decide_on(decision, area, points, left, right)
 
@@ -357,35 +358,40 @@ class BestPointChooser:
                                           point, self.top_shape_memory)
         return self._choose(decision, point)
 
-    def _decide_on_fitted_pieces(self, decision: BestPointDecision, area: CorrelationArea,
-                                 points: MatchedPoints, left: CameraCalibration,
-                                 right: CameraCalibration) -> BestPointDecision | None:
-        """Return a decision at the centre of the top fitted around a face refused as in
-        pieces after every look (top_shape_fit.centre_for_pieces), or None (the refusal
-        stands). The selector's point on the face in pieces is where the fit starts; a face
-        whose matches are sparse is still matched at its top's height, and the fit finds its
+    def _decide_on_fitted_face(self, decision: BestPointDecision, area: CorrelationArea,
+                               points: MatchedPoints, left: CameraCalibration,
+                               right: CameraCalibration) -> BestPointDecision | None:
+        """Return a decision at the centre of the top fitted around a face refused after every
+        look as in pieces, or as smaller in the image than any object's top
+        (top_shape_fit.centre_for_refused_face), or None (the refusal stands). The selector's
+        point on the refused face is where the fit starts; a face whose matches are sparse,
+        or a narrow top's few, is still matched at its top's height, and the fit finds its
         outline in both images (why, measured: the package README, "A face in pieces given
         its fitted top")."""
-        pieces = area.face_in_pieces
-        if (area.status != UNCERTAIN_TOP or pieces is None or not pieces.ok
-                or not self.area_config.fit_top_shape or self.selector == 'max_score'):
+        if area.status == UNCERTAIN_TOP and area.face_in_pieces is not None:
+            face, look, count = area.face_in_pieces, LOOK_FITTED_PIECES, 'pieces'
+        elif area.status == NO_OBJECT and area.face_too_small is not None:
+            face, look, count = area.face_too_small, LOOK_FITTED_SMALL_FACE, 'small'
+        else:
             return None
-        started = self._decide_on(replace(decision), pieces, points, left, right,
+        if not face.ok or not self.area_config.fit_top_shape or self.selector == 'max_score':
+            return None
+        started = self._decide_on(replace(decision), face, points, left, right,
                                   fit_top_shape=False)
         if started.best_point_world is None:
             return None
-        fit = fitted_around(pieces, points, left, right, self.world_from_camera,
+        fit = fitted_around(face, points, left, right, self.world_from_camera,
                             started.best_point_world, self.top_shape_memory)
-        point = centre_for_pieces(started.best_point_world, fit)
+        point = centre_for_refused_face(started.best_point_world, fit)
         if point is None:
             return None
         if self.top_shape_memory is not None:
-            self.top_shape_memory.counts['pieces'] += 1
+            self.top_shape_memory.counts[count] += 1
         # the fitted centre is given only if _choose passes it
         started.best_point_world = started.best_point_camera = None
-        started.top_height = pieces.top_height
-        started.area_points_world = pieces.xyz_world
-        started.look = LOOK_FITTED_PIECES
+        started.top_height = face.top_height
+        started.area_points_world = face.xyz_world
+        started.look = look
         return self._choose(started, point)
 
     def _choose(self, decision: BestPointDecision, point: np.ndarray) -> BestPointDecision:
@@ -470,7 +476,8 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
     Training (area_features) goes through here too, so the fitted selectors learn on the
     areas they will be given. A face narrower than any object (min_object_across_m) or
     covering less of the image than any object (MIN_OBJECT_AREA_PX) is refused whichever way
-    its outline came. A pair refused after every look at its face is looked at once more as
+    its outline came (the latter keeps its face, CorrelationArea.face_too_small, for the top
+    fitted around it). A pair refused after every look at its face is looked at once more as
     the image's textured regions (correlation_area.find_textured_area), and then, with the
     right image, for one plain object on a textured surface (plain_object.py). A face that
     passed it all and stands low has its rim refined from its appearance (face_appearance.py).
@@ -546,6 +553,7 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
                 f'the top face found is {1000.0 * width:.1f} mm wide on the work surface, '
                 f'narrower than any object (min_object_across_m={config.min_object_across_m:g})'
                 ": a sliver of a face, whose centre is not the face's"))
+    too_small = ''  # why a face is too small in the image to be taken on its matches alone
     if area.ok and on_pixel_grid(area.u_left) and on_pixel_grid(area.v_left):
         # counted on the matches' pixel grid (correlation_node's); points from elsewhere
         # (geometric scenes) have no grid to count an image area on
@@ -554,12 +562,12 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
         if covered < MIN_OBJECT_AREA_PX:
             # On a bare textured table a blob of mismatches the size of a correlation window
             # or two can stand out in sigmas; no object's top is that small in the image.
-            return replace(area, status=NO_OBJECT, reason=(
-                f'the top face found covers {covered:.0f} px of the left image, less than any '
-                f"object's top ({MIN_OBJECT_AREA_PX:g} px): a blob of mismatches, not a face"))
+            too_small = (f'the top face found covers {covered:.0f} px of the left image, less '
+                         f"than any object's top ({MIN_OBJECT_AREA_PX:g} px): a blob of "
+                         'mismatches, not a face')
     if area.ok and points.left_image is not None and config.outline_from_image:
-        # Only a face that passed every test: its appearance refines where its rim lies,
-        # it does not make a sliver or a blob a face.
+        # Only a face that passed the tests above: its appearance refines where its rim
+        # lies, it does not make a sliver a face (nor a blob one: that stays refused).
         area = low_face_from_appearance(area, points.left_image, left, right,
                                         world_from_camera, config.min_points) or area
     if area.ok and points.left_image is not None and config.outline_from_image:
@@ -568,11 +576,15 @@ def decision_area(points: MatchedPoints, left: CameraCalibration, right: CameraC
         overlap = looks_like_the_surface(area.u_left, area.v_left, area.object_height_sigmas,
                                          points.left_image)
         if overlap is not None:
-            return replace(area, status=NO_OBJECT, reason=(
+            return replace(area, status=NO_OBJECT, reason=too_small or (
                 f'the top face found stands only {area.object_height_sigmas:.1f} sigmas out of '
                 f'the work surface and looks like the surface around it (appearance overlap '
                 f'{overlap:.2f} > {SURFACE_LOOKALIKE_OVERLAP:g}): a patch of the surface '
                 'matched a repeat of its texture away, not an object'))
+    if area.ok and too_small:
+        # A narrow box's top can be that small too: BestPointChooser fits the top around
+        # it, and only a clear fit found again gives it a point.
+        return replace(area, status=NO_OBJECT, reason=too_small, face_too_small=area)
     return area
 
 

@@ -124,15 +124,16 @@ WEIGHT = 0.7
 """The point is moved this share of the way to a fitted centre within MAX_MOVE_M that passed
 the tests above."""
 
-PIECES_MIN_DROP = 0.01
-"""A face refused as in pieces (AreaConfig.min_top_fill) after every look is given the
-centre of the top fitted around it, whole, when the fit is found again (a shifted start ends
-as low, and every one that does within MAX_SPREAD_M) and lowered the cost by at least this
-per pixel: twice MIN_DROP, for the fit is then the only evidence of where the top is (the few
-bare tables' blotches whose fits were found again had drops just below it:
-benchmarks/EXPERIMENTS.md, thirtieth session). A fit that no shifted start ended at as low a
-cost is not found again, though its spread is 0: the probes over refused faces found such
-fits mostly far off."""
+REFUSED_FACE_MIN_DROP = 0.01
+"""A face refused after every look as in pieces (AreaConfig.min_top_fill) or as smaller in the
+left image than any object's top (correlation_area.MIN_OBJECT_AREA_PX) is given the centre of
+the top fitted around it, whole, when the fit is found again (a shifted start ends as low, and
+every one that does within MAX_SPREAD_M) and lowered the cost by at least this per pixel:
+twice MIN_DROP, for the fit is then the only evidence of where the top is (the few bare
+tables' blotches whose fits were found again had drops just below it: benchmarks/
+EXPERIMENTS.md, thirtieth session). A fit that no shifted start ended at as low a cost is not
+found again, though its spread is 0: the probes over refused faces found such fits mostly far
+off."""
 
 SAME_OBJECT_M = 0.004
 """A TopShapeMemory gives its fit again for a point this close to the one it was made for
@@ -634,13 +635,13 @@ def moved_toward_fit(point: np.ndarray, fit: TopShapeFit | None, weight: float =
     return point
 
 
-def centre_for_pieces(point: np.ndarray, fit: TopShapeFit | None,
-                      min_drop: float = PIECES_MIN_DROP,
-                      max_spread_m: float = MAX_SPREAD_M) -> np.ndarray | None:
-    """Return the point of a face refused as in pieces moved to its fitted centre, when the fit
-    lowered the cost by min_drop per pixel, at least one shifted start found it again, and
-    every one that ended as low ended within max_spread_m of it; None when the fit says too
-    little for a point."""
+def centre_for_refused_face(point: np.ndarray, fit: TopShapeFit | None,
+                            min_drop: float = REFUSED_FACE_MIN_DROP,
+                            max_spread_m: float = MAX_SPREAD_M) -> np.ndarray | None:
+    """Return the point of a face refused as in pieces or as too small in the image
+    (REFUSED_FACE_MIN_DROP) moved to its fitted centre, when the fit lowered the cost by
+    min_drop per pixel, at least one shifted start found it again, and every one that ended as
+    low ended within max_spread_m of it; None when the fit says too little for a point."""
     if fit is None or not (fit.drop_per_px >= min_drop) or not (
             fit.spread_m <= max_spread_m) or fit.found_again < 1:
         return None
@@ -661,15 +662,15 @@ class TopShapeMemory:
         point: The point (world) the remembered fit was made for, or None.
         pose: The camera pose it was made with.
         fit: The fit (None: the pair could not be fitted).
-        counts: Fits made, fits given again, points moved toward a fit, faces in pieces
-            given their fitted centre (BestPointChooser).
+        counts: Fits made, fits given again, points moved toward a fit, faces in pieces and
+            faces too small in the image given their fitted centre (BestPointChooser).
     """
 
     point: np.ndarray | None = None
     pose: np.ndarray | None = None
     fit: TopShapeFit | None = None
     counts: dict[str, int] = field(default_factory=lambda: dict(fitted=0, recalled=0, moved=0,
-                                                                  pieces=0))
+                                                                  pieces=0, small=0))
 
     def recall(self, point: np.ndarray, pose: np.ndarray) -> tuple[bool, TopShapeFit | None]:
         """Return (True, the fit) when one was made for the same object, else (False, None)."""
