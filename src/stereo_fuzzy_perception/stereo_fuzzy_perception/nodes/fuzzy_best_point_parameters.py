@@ -108,7 +108,8 @@ class FuzzyBestPointSettings:
         'pixel by pixel (top_shape_fit.py: no correlation window straddles its rim) and move the '
         'best point to the fitted centre where the fit lowered its cost clearly and is found '
         'again from starts 2 mm off: 0.7 of the way within 7 mm, whole within 12 mm. A face '
-        'refused as in pieces is given its fitted centre when the fit is clearer still. Fitted '
+        'refused as in pieces, or as smaller in the image than any top, is given its fitted '
+        'centre when the fit is clearer still. Fitted '
         'once per object: the pairs that follow with a point within 4 mm of the first reuse the '
         "fit, so only the first pair of each object waits for it (its cost: the main README's "
         'benchmark table)')
