@@ -367,7 +367,7 @@ class BestPointChooser:
         point on the refused face is where the fit starts; a face whose matches are sparse,
         or a narrow top's few, is still matched at its top's height, and the fit finds its
         outline in both images (why, measured: the package README, "A face in pieces given
-        its fitted top")."""
+        its fitted top" and "A face too small in the image given its fitted top")."""
         if area.status == UNCERTAIN_TOP and area.face_in_pieces is not None:
             face, look, count = area.face_in_pieces, LOOK_FITTED_PIECES, 'pieces'
         elif area.status == NO_OBJECT and area.face_too_small is not None:
