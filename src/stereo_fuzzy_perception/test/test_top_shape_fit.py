@@ -343,40 +343,34 @@ def _top_in_pieces_seen_by_both_cameras(box):
                                 right_image=right_image), left, right)
 
 
-def test_a_face_in_pieces_is_given_the_centre_of_the_top_fitted_to_both_images():
-    box = Box((0.21, 0.16), 0.04, 0.03)
-    points, left, right = _top_in_pieces_seen_by_both_cameras(box)
-    chooser = dataclasses.replace(BestPointChooser.create('fuzzy_fitted', AreaConfig(), RIG),
-                                  world_from_camera=POSE, top_shape_memory=TopShapeMemory())
-    decision = chooser.decide(points, left, right)
-    assert decision.look == LOOK_FITTED_PIECES, decision.reason
-    assert np.hypot(*(decision.best_point_world[:2] - box.centre_xy)) < 1e-3
-    assert decision.best_point_world[2] == pytest.approx(box.height, abs=1e-3)
-    assert chooser.top_shape_memory.counts['pieces'] == 1
-    # without the fit the same face is refused, as in pieces
-    unfitted = dataclasses.replace(chooser, area_config=AreaConfig(fit_top_shape=False))
-    refused = unfitted.decide(points, left, right)
-    assert refused.status == UNCERTAIN_TOP and 'pieces' in refused.reason
-    assert refused.best_point_world is None
-
-
-def test_a_narrow_top_smaller_than_any_in_the_image_is_given_its_fitted_centre():
-    # 13 mm across and ray-cast in both images: its top covers about 140 px of the left
-    # image, less than a face taken on its matches alone may (MIN_OBJECT_AREA_PX)
-    box = Box((0.21, 0.16), 0.013, 0.03)
+def _top_too_small_seen_by_both_cameras(box):
+    """Return (matches, left, right) of a textured box with both images ray-cast; a box 13 mm
+    across has a top covering about 140 px of the left image, less than a face taken on its
+    matches alone may (MIN_OBJECT_AREA_PX)."""
     points, left, right = grid_matches(RIG, box, 0.05, 1)
     left_image, right_image, *_ = plain_box_pair(RIG, box, top_grey=200.0, right_gain=0.9,
                                                  right_offset=12.0, top_texture=40.0)
-    points = dataclasses.replace(points, left_image=left_image, right_image=right_image)
+    return dataclasses.replace(points, left_image=left_image, right_image=right_image), left, right
+
+
+@pytest.mark.parametrize('side_m, seen, look, counted, refused_status, refused_as', [
+    (0.04, _top_in_pieces_seen_by_both_cameras, LOOK_FITTED_PIECES, 'pieces', UNCERTAIN_TOP,
+     'pieces'),
+    (0.013, _top_too_small_seen_by_both_cameras, LOOK_FITTED_SMALL_FACE, 'small', NO_OBJECT,
+     'less than any object')], ids=['face in pieces', 'face too small in the image'])
+def test_a_refused_face_is_given_the_centre_of_the_top_fitted_to_both_images(
+        side_m, seen, look, counted, refused_status, refused_as):
+    box = Box((0.21, 0.16), side_m, 0.03)
+    points, left, right = seen(box)
     chooser = dataclasses.replace(BestPointChooser.create('fuzzy_fitted', AreaConfig(), RIG),
                                   world_from_camera=POSE, top_shape_memory=TopShapeMemory())
     decision = chooser.decide(points, left, right)
-    assert decision.look == LOOK_FITTED_SMALL_FACE, decision.reason
+    assert decision.look == look, decision.reason
     assert np.hypot(*(decision.best_point_world[:2] - box.centre_xy)) < 1e-3
     assert decision.best_point_world[2] == pytest.approx(box.height, abs=1e-3)
-    assert chooser.top_shape_memory.counts['small'] == 1
-    # without the fit the same face is refused, as too small
+    assert chooser.top_shape_memory.counts[counted] == 1
+    # without the fit the same face is refused, for what the fit would have made up for
     unfitted = dataclasses.replace(chooser, area_config=AreaConfig(fit_top_shape=False))
     refused = unfitted.decide(points, left, right)
-    assert refused.status == NO_OBJECT and 'less than any object' in refused.reason
+    assert refused.status == refused_status and refused_as in refused.reason
     assert refused.best_point_world is None
