@@ -311,7 +311,7 @@ def test_the_principal_axes_of_a_uniform_strip_are_its_sides_and_direction():
     assert math.sin(2 * (found_angle - angle)) == pytest.approx(0.0, abs=0.02)
 
 
-def test_a_face_in_pieces_takes_the_fitted_centre_only_from_a_clear_fit_found_again():
+def test_a_refused_face_takes_the_fitted_centre_only_from_a_clear_fit_found_again():
     chain = np.array([0.1, 0.1, 0.05])
     clear = TopShapeFit('rectangle', np.array([0.109, 0.1]), 0.05, spread_m=0.001)
     assert centre_for_refused_face(chain, clear) == pytest.approx([0.109, 0.1, 0.05])

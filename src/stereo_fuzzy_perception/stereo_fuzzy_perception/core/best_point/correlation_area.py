@@ -179,8 +179,8 @@ class AreaConfig:
         fit_top_shape: When the matches come with both rectified images, fit the top face as
             a disc or a rectangle to both, pixel by pixel (top_shape_fit.py), and move the
             best point most of the way to the fitted centre where the two agree and the fit
-            is clear; a face refused as in pieces is given the fitted centre when the fit is
-            clearer still (BestPointChooser).
+            is clear; a face refused as in pieces, or as smaller in the image than any top,
+            is given the fitted centre when the fit is clearer still (BestPointChooser).
     """
 
     workspace_min: tuple[float, float, float] = (0.0, 0.0, 0.0)
