@@ -256,7 +256,7 @@ def test_the_point_moves_part_way_only_for_a_near_and_clear_fit():
         [0.101, 0.1, 0.05])
 
 
-def test_a_fit_found_again_further_off_than_a_move_is_taken_whole_up_to_a_bound():
+def test_a_fit_found_again_from_every_start_further_off_than_a_move_is_taken_whole():
     chain = np.array([0.1, 0.1, 0.05])
     rule = dict(weight=0.5, max_move_m=0.005, min_drop=0.02, max_spread_m=0.002,
                 far_move_m=0.012)
@@ -265,8 +265,18 @@ def test_a_fit_found_again_further_off_than_a_move_is_taken_whole_up_to_a_bound(
     too_far = TopShapeFit('disc', np.array([0.113, 0.1]), 0.05, spread_m=0.001)
     not_found_again = TopShapeFit('disc', np.array([0.109, 0.1]), 0.05, spread_m=0.003)
     unclear = TopShapeFit('disc', np.array([0.109, 0.1]), 0.01, spread_m=0.001)
-    for fit in (too_far, not_found_again, unclear):
+    # the spread counts only the starts that ended as low: here three of four went elsewhere
+    found_by_one_start = TopShapeFit('disc', np.array([0.109, 0.1]), 0.05, spread_m=0.001,
+                                     found_again=1)
+    found_by_no_start = TopShapeFit('disc', np.array([0.109, 0.1]), 0.05, spread_m=0.0,
+                                    found_again=0)
+    for fit in (too_far, not_found_again, unclear, found_by_one_start, found_by_no_start):
         assert moved_toward_fit(chain, fit, **rule) == pytest.approx(chain)
+    # within max_move_m the spread alone decides, as before
+    near_found_by_one_start = TopShapeFit('disc', np.array([0.104, 0.1]), 0.05,
+                                          spread_m=0.001, found_again=1)
+    assert moved_toward_fit(chain, near_found_by_one_start, **rule) == pytest.approx(
+        [0.102, 0.1, 0.05])
 
 
 def test_a_fit_on_a_flat_cost_ends_where_each_start_began_and_says_so():

@@ -94,10 +94,12 @@ MAX_MOVE_M = 0.007
 """A fitted centre within this of the chain's point is taken WEIGHT of the way..."""
 
 FAR_MOVE_M = 0.012
-"""...but whole, up to this far: a fit found again from every start (MAX_SPREAD_M) that lies
-so far from the point says that the point is off, and the fit is the better of the two (on
-the tuning splits such points were mostly far off and their fits close to the true centre;
-a few points it moves get worse: benchmarks/EXPERIMENTS.md, twenty-ninth session)."""
+"""...but whole, up to this far: a fit found again from every start (each shifted fit ending
+as low, within MAX_SPREAD_M) that lies so far from the point says that the point is off, and
+the fit is the better of the two (on the tuning splits such points were mostly far off and
+their fits close to the true centre; a few points it moves get worse: benchmarks/
+EXPERIMENTS.md, twenty-ninth session). Fits that some starts left for another shape moved
+more points within 3 mm away than they brought back (thirty-second session)."""
 
 MIN_DROP = 0.005
 """A fit that lowered the cost by less than this per pixel of the crop is not taken."""
@@ -623,14 +625,17 @@ def moved_toward_fit(point: np.ndarray, fit: TopShapeFit | None, weight: float =
     """Return the point moved toward the fitted centre on the surface when the fit lowered the
     cost by min_drop per pixel and its shifted starts ended within max_spread_m of it:
     `weight` of the way when the centre lies within max_move_m of the point, all the way when
-    it lies within far_move_m; otherwise the point as it was."""
+    it lies within far_move_m and every shifted start found it again; otherwise the point as
+    it was."""
     point = np.array(point, dtype=float)
     if fit is None or not (fit.drop_per_px >= min_drop) or not (fit.spread_m <= max_spread_m):
         return point
     move = float(np.hypot(*(fit.centre - point[:2])))
     if move <= max_move_m:
         point[:2] = (1.0 - weight) * point[:2] + weight * fit.centre
-    elif move <= far_move_m:
+    elif move <= far_move_m and fit.found_again >= len(SHIFT_DIRECTIONS):
+        # the spread is only over the starts that ended as low: a fit that most starts left
+        # for another shape is no reason to move a point this far (FAR_MOVE_M)
         point[:2] = fit.centre
     return point
 
