@@ -242,7 +242,7 @@ def test_a_top_standing_too_little_out_in_disparity_is_not_scored():
 
 def test_the_point_moves_part_way_only_for_a_near_and_clear_fit():
     chain = np.array([0.1, 0.1, 0.05])
-    near = TopShapeFit('disc', np.array([0.102, 0.1]), drop_per_px=0.05)
+    near = TopShapeFit('disc', np.array([0.102, 0.1]), drop_per_px=0.05, spread_m=0.0005)
     assert moved_toward_fit(chain, near, 0.5, 0.005, 0.02) == pytest.approx([0.101, 0.1, 0.05])
     far = TopShapeFit('disc', np.array([0.11, 0.1]), drop_per_px=0.05)
     unclear = TopShapeFit('disc', np.array([0.102, 0.1]), drop_per_px=0.01)
@@ -254,6 +254,20 @@ def test_the_point_moves_part_way_only_for_a_near_and_clear_fit():
     found_again = TopShapeFit('disc', np.array([0.102, 0.1]), 0.05, spread_m=0.001)
     assert moved_toward_fit(chain, found_again, 0.5, 0.005, 0.02, 0.002, 0.008) == pytest.approx(
         [0.101, 0.1, 0.05])
+
+
+def test_a_near_fit_every_start_found_again_in_a_sharp_valley_is_taken_whole():
+    chain = np.array([0.1, 0.1, 0.05])
+    rule = dict(weight=0.5, max_move_m=0.005, min_drop=0.02, max_spread_m=0.002,
+                sharp_spread_m=0.0003)
+    sharp = TopShapeFit('disc', np.array([0.104, 0.1]), 0.05, spread_m=0.0002)
+    assert moved_toward_fit(chain, sharp, **rule) == pytest.approx([0.104, 0.1, 0.05])
+    # a wider valley, or a sharp one that not every start reached, is taken part way only
+    wider = TopShapeFit('disc', np.array([0.104, 0.1]), 0.05, spread_m=0.0004)
+    found_by_three_starts = TopShapeFit('disc', np.array([0.104, 0.1]), 0.05, spread_m=0.0002,
+                                        found_again=3)
+    for fit in (wider, found_by_three_starts):
+        assert moved_toward_fit(chain, fit, **rule) == pytest.approx([0.102, 0.1, 0.05])
 
 
 def test_a_fit_found_again_from_every_start_further_off_than_a_move_is_taken_whole():

@@ -124,7 +124,13 @@ FAR_MOVE_M and MIN_DROP: benchmarks/EXPERIMENTS.md, twenty-ninth session)."""
 
 WEIGHT = 0.7
 """The point is moved this share of the way to a fitted centre within MAX_MOVE_M that passed
-the tests above."""
+the tests above..."""
+
+SHARP_SPREAD_M = 0.00025
+"""...and all the way when every shifted start ended within this of it: the cost's valley is
+sharp there, and such fits lie closer to the true centre than the chain's point (on the
+tuning and check runs three points came closer for every one that went further:
+benchmarks/EXPERIMENTS.md, thirty-second session)."""
 
 REFUSED_FACE_MIN_DROP = 0.01
 """A face refused after every look as in pieces (AreaConfig.min_top_fill) or as smaller in the
@@ -621,19 +627,23 @@ def fitted(area: CorrelationArea, points: MatchedPoints, left: CameraCalibration
 def moved_toward_fit(point: np.ndarray, fit: TopShapeFit | None, weight: float = WEIGHT,
                      max_move_m: float = MAX_MOVE_M, min_drop: float = MIN_DROP,
                      max_spread_m: float = MAX_SPREAD_M,
-                     far_move_m: float = FAR_MOVE_M) -> np.ndarray:
+                     far_move_m: float = FAR_MOVE_M,
+                     sharp_spread_m: float = SHARP_SPREAD_M) -> np.ndarray:
     """Return the point moved toward the fitted centre on the surface when the fit lowered the
     cost by min_drop per pixel and its shifted starts ended within max_spread_m of it:
-    `weight` of the way when the centre lies within max_move_m of the point, all the way when
-    it lies within far_move_m and every shifted start found it again; otherwise the point as
-    it was."""
+    `weight` of the way when the centre lies within max_move_m of the point (all the way when
+    every shifted start found it again within sharp_spread_m), all the way when it lies within
+    far_move_m and every shifted start found it again; otherwise the point as it was."""
     point = np.array(point, dtype=float)
     if fit is None or not (fit.drop_per_px >= min_drop) or not (fit.spread_m <= max_spread_m):
         return point
     move = float(np.hypot(*(fit.centre - point[:2])))
+    found_by_every_start = fit.found_again >= len(SHIFT_DIRECTIONS)
     if move <= max_move_m:
-        point[:2] = (1.0 - weight) * point[:2] + weight * fit.centre
-    elif move <= far_move_m and fit.found_again >= len(SHIFT_DIRECTIONS):
+        sharp = found_by_every_start and fit.spread_m <= sharp_spread_m
+        share = 1.0 if sharp else weight
+        point[:2] = (1.0 - share) * point[:2] + share * fit.centre
+    elif move <= far_move_m and found_by_every_start:
         # the spread is only over the starts that ended as low: a fit that most starts left
         # for another shape is no reason to move a point this far (FAR_MOVE_M)
         point[:2] = fit.centre
