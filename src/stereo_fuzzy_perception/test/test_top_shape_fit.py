@@ -256,41 +256,39 @@ def test_the_point_moves_part_way_only_for_a_near_and_clear_fit():
         [0.101, 0.1, 0.05])
 
 
+MOVE_RULE = dict(weight=0.5, max_move_m=0.005, min_drop=0.02, max_spread_m=0.002,
+                 far_move_m=0.012, sharp_spread_m=0.0003)
+"""moved_toward_fit's bounds in the tests below: half the way within 5 mm, whole within 12."""
+
+CHAIN_POINT = np.array([0.1, 0.1, 0.05])
+
+
+def _moved_to(x_m: float, spread_m: float, drop_per_px: float = 0.05,
+              found_again: int = 4) -> np.ndarray:
+    """CHAIN_POINT moved under MOVE_RULE toward a disc fitted at (x_m, 0.1)."""
+    fit = TopShapeFit('disc', np.array([x_m, 0.1]), drop_per_px, spread_m, found_again)
+    return moved_toward_fit(CHAIN_POINT, fit, **MOVE_RULE)
+
+
 def test_a_near_fit_every_start_found_again_in_a_sharp_valley_is_taken_whole():
-    chain = np.array([0.1, 0.1, 0.05])
-    rule = dict(weight=0.5, max_move_m=0.005, min_drop=0.02, max_spread_m=0.002,
-                sharp_spread_m=0.0003)
-    sharp = TopShapeFit('disc', np.array([0.104, 0.1]), 0.05, spread_m=0.0002)
-    assert moved_toward_fit(chain, sharp, **rule) == pytest.approx([0.104, 0.1, 0.05])
+    assert _moved_to(0.104, spread_m=0.0002) == pytest.approx([0.104, 0.1, 0.05])
     # a wider valley, or a sharp one that not every start reached, is taken part way only
-    wider = TopShapeFit('disc', np.array([0.104, 0.1]), 0.05, spread_m=0.0004)
-    found_by_three_starts = TopShapeFit('disc', np.array([0.104, 0.1]), 0.05, spread_m=0.0002,
-                                        found_again=3)
-    for fit in (wider, found_by_three_starts):
-        assert moved_toward_fit(chain, fit, **rule) == pytest.approx([0.102, 0.1, 0.05])
+    assert _moved_to(0.104, spread_m=0.0004) == pytest.approx([0.102, 0.1, 0.05])
+    assert _moved_to(0.104, spread_m=0.0002, found_again=3) == pytest.approx([0.102, 0.1, 0.05])
 
 
 def test_a_fit_found_again_from_every_start_further_off_than_a_move_is_taken_whole():
-    chain = np.array([0.1, 0.1, 0.05])
-    rule = dict(weight=0.5, max_move_m=0.005, min_drop=0.02, max_spread_m=0.002,
-                far_move_m=0.012)
-    found_again = TopShapeFit('disc', np.array([0.109, 0.1]), 0.05, spread_m=0.001)
-    assert moved_toward_fit(chain, found_again, **rule) == pytest.approx([0.109, 0.1, 0.05])
-    too_far = TopShapeFit('disc', np.array([0.113, 0.1]), 0.05, spread_m=0.001)
-    not_found_again = TopShapeFit('disc', np.array([0.109, 0.1]), 0.05, spread_m=0.003)
-    unclear = TopShapeFit('disc', np.array([0.109, 0.1]), 0.01, spread_m=0.001)
+    assert _moved_to(0.109, spread_m=0.001) == pytest.approx([0.109, 0.1, 0.05])
+    too_far = _moved_to(0.113, spread_m=0.001)
+    not_found_again = _moved_to(0.109, spread_m=0.003)
+    unclear = _moved_to(0.109, spread_m=0.001, drop_per_px=0.01)
     # the spread counts only the starts that ended as low: here three of four went elsewhere
-    found_by_one_start = TopShapeFit('disc', np.array([0.109, 0.1]), 0.05, spread_m=0.001,
-                                     found_again=1)
-    found_by_no_start = TopShapeFit('disc', np.array([0.109, 0.1]), 0.05, spread_m=0.0,
-                                    found_again=0)
-    for fit in (too_far, not_found_again, unclear, found_by_one_start, found_by_no_start):
-        assert moved_toward_fit(chain, fit, **rule) == pytest.approx(chain)
+    found_by_one_start = _moved_to(0.109, spread_m=0.001, found_again=1)
+    found_by_no_start = _moved_to(0.109, spread_m=0.0, found_again=0)
+    for moved in (too_far, not_found_again, unclear, found_by_one_start, found_by_no_start):
+        assert moved == pytest.approx(CHAIN_POINT)
     # within max_move_m the spread alone decides, as before
-    near_found_by_one_start = TopShapeFit('disc', np.array([0.104, 0.1]), 0.05,
-                                          spread_m=0.001, found_again=1)
-    assert moved_toward_fit(chain, near_found_by_one_start, **rule) == pytest.approx(
-        [0.102, 0.1, 0.05])
+    assert _moved_to(0.104, spread_m=0.001, found_again=1) == pytest.approx([0.102, 0.1, 0.05])
 
 
 def test_a_fit_on_a_flat_cost_ends_where_each_start_began_and_says_so():
