@@ -97,9 +97,9 @@ FAR_MOVE_M = 0.012
 """...but whole, up to this far: a fit found again from every start (each shifted fit ending
 as low, within MAX_SPREAD_M) that lies so far from the point says that the point is off, and
 the fit is the better of the two (on the tuning splits such points were mostly far off and
-their fits close to the true centre; a few points it moves get worse: benchmarks/
-EXPERIMENTS.md, twenty-ninth session). Fits that some starts left for another shape moved
-more points within 3 mm away than they brought back (thirty-second session)."""
+their fits close to the true centre; a few points it moves get worse). Fits that some starts
+left for another shape took more good points away than they mended
+(benchmarks/EXPERIMENTS.md, twenty-ninth and thirty-second sessions)."""
 
 MIN_DROP = 0.005
 """A fit that lowered the cost by less than this per pixel of the crop is not taken."""
@@ -128,9 +128,9 @@ the tests above..."""
 
 SHARP_SPREAD_M = 0.00025
 """...and all the way when every shifted start ended within this of it: the cost's valley is
-sharp there, and such fits lie closer to the true centre than the chain's point (on the
-tuning and check runs three points came closer for every one that went further:
-benchmarks/EXPERIMENTS.md, thirty-second session)."""
+sharp there, and on the tuning and check runs such fits lay closer to the true centre than
+the chain's point far more often than not (benchmarks/EXPERIMENTS.md, thirty-second
+session)."""
 
 REFUSED_FACE_MIN_DROP = 0.01
 """A face refused after every look as in pieces (AreaConfig.min_top_fill) or as smaller in the
