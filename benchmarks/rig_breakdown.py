@@ -6,9 +6,10 @@ Reads the per-scene CSV that rig_generalisation_benchmark.py wrote (no rendering
 seconds) and, for every rig of the split, the rig's depth resolution at the table: the change of
 depth [mm] per 0.1 px of disparity where the left camera's optical axis meets z = 0,
 Z^2 / (f B) * 0.1 (0.1 px: the order of the matcher's noise on a textured table). Beside it,
-per point stride, the scenes within the tolerance for the fitted rules, their perfect-depth
-ceiling and the plain OpenCV pipeline, rig by rig and for the rigs on either side of
---resolution-mm.
+per point stride, the scenes within the tolerance for the fitted rules, the true top's outline
+at its matches' median height (the benchmark's diagnosis: what the matches allow), the
+perfect-depth ceiling and the plain OpenCV pipeline, rig by rig and for the rigs on either
+side of --resolution-mm.
 
     source scripts/env.sh
     python benchmarks/rig_breakdown.py
@@ -36,9 +37,13 @@ from stereo_fuzzy_perception.simulation.scene_distribution import (  # noqa: E40
     draw_rig,
 )
 
-ROWS = {'fitted rules': 'fuzzy_fitted', 'ceiling': 'ceiling: fuzzy_fitted',
+ROWS = {'fitted rules': 'fuzzy_fitted',
+        'true outline': "diagnosis: the true top's outline at its matches' median height "
+                        '(knows the outline)',
+        'ceiling': 'ceiling: fuzzy_fitted',
         'OpenCV': 'opencv (SGBM + largest component + top band)'}
-"""Columns of the table: the CSV's row names."""
+"""Columns of the table: the CSV's row names (rig_generalisation_benchmark.py). `true outline`
+is its diagnosis: the matches' own heights on a top found perfectly."""
 
 DISPARITY_STEP_PX = 0.1
 """The disparity error the resolution is given for [px]."""

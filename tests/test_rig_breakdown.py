@@ -31,8 +31,8 @@ def test_rigs_are_listed_by_resolution_and_grouped_on_either_side_of_the_split()
             _row('ceiling', 1, 31, '0.5'), _row('ceiling', 1, 31, '0.5')]
     lines = table(rows, {30: 2.0, 31: 0.5}, 3.0, 1.0)
     body = lines[2:]
-    assert body[0].startswith('| 31 | 0.50 | 1/2 (50 %) | 2/2 (100 %) | - |')
-    assert body[1].startswith('| 30 | 2.00 | 0/1 (0 %) | 1/1 (100 %) | - |')
+    assert body[0].startswith('| 31 | 0.50 | 1/2 (50 %) | - | 2/2 (100 %) | - |')
+    assert body[1].startswith('| 30 | 2.00 | 0/1 (0 %) | - | 1/1 (100 %) | - |')
     assert body[2].startswith('| **rigs at most 1 mm** (1) |  | 1/2 (50 %)')
     assert body[3].startswith('| **rigs over 1 mm** (1) |  | 0/1 (0 %)')
 
@@ -49,7 +49,8 @@ def test_scenes_are_grouped_by_any_column_a_line_per_value():
             _row('fitted rules', 1, 31, '2.0'), _row('ceiling', 1, 30, '0.5', '40-60 px'),
             _row('fitted rules', 3, 30, '4.0', '40-60 px')]
     lines = column_table(rows, 'top_px', 3.0)
-    assert lines[0].startswith('| top_px | fitted rules, stride 1 | ceiling, stride 1 |')
+    assert lines[0].startswith('| top_px | fitted rules, stride 1 | true outline, stride 1 | '
+                               'ceiling, stride 1 |')
     # two rigs, one value: the 24-40 px scenes of both rigs together
-    assert lines[2] == ('| 24-40 px | 1/2 (50 %) | - | - | - | - | - |')
-    assert lines[3] == ('| 40-60 px | 1/1 (100 %) | 1/1 (100 %) | - | 0/1 (0 %) | - | - |')
+    assert lines[2] == ('| 24-40 px | 1/2 (50 %) | - | - | - | - | - | - | - |')
+    assert lines[3] == ('| 40-60 px | 1/1 (100 %) | - | 1/1 (100 %) | - | 0/1 (0 %) | - | - | - |')
