@@ -19,7 +19,7 @@ Per scene (rendered once, matched once, at every --point-stride):
 * a plain OpenCV pipeline (opencv_reference.py: StereoSGBM + height mask + largest connected
   component + top band, centroid) on the same pair; it uses every pixel whatever the stride;
 * a diagnosis row: the top face's true outline in the left image, cut at the median height
-  of the matches inside it (ORACLE_ERODE_PX in from its rim). It is no selector (it knows the
+  of the matches inside it (true_top.true_outline_point). It is no selector (it knows the
   outline); it is what the matches' own heights allow when the top is found perfectly, so the
   gap between it and a selector is the loss of finding the top, and the gap between it and
   the ceiling the matcher's.
@@ -64,13 +64,12 @@ if str(ROOT) not in sys.path:
 for variable in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ.setdefault(variable, '1')
 
-import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig  # noqa: E402
 from stereo_fuzzy_perception.core.best_point.point_selectors import SELECTORS, BestPointChooser  # noqa: E402
 from stereo_fuzzy_perception.core.best_point.second_look import decide_with_second_look  # noqa: E402
 from stereo_fuzzy_perception.core.matching.matcher_config import MatcherConfig  # noqa: E402
-from stereo_fuzzy_perception.core.rig_geometry import StereoRig, transform_points  # noqa: E402
+from stereo_fuzzy_perception.core.rig_geometry import StereoRig  # noqa: E402
 from stereo_fuzzy_perception.simulation.distribution_source import (  # noqa: E402
     MatchedDistributionScene,
     match_plan,
@@ -84,16 +83,13 @@ from stereo_fuzzy_perception.simulation.scene_distribution import (  # noqa: E40
 from stereo_fuzzy_perception.simulation.scene_model import OBJECT_TYPES  # noqa: E402
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene  # noqa: E402
 
-from benchmarks.rig_tuning import left_pixel_rays, top_face_pixels  # noqa: E402
 from benchmarks.table_bias import table_bias_mm  # noqa: E402
+from benchmarks.true_top import true_outline_point  # noqa: E402
 
 SELECTOR_ORDER = ('fuzzy_fitted', 'fuzzy_chapter', 'centroid', 'max_score', 'neural_network')
 assert set(SELECTOR_ORDER) == set(SELECTORS)
 OPENCV_ROW = 'opencv (SGBM + largest component + top band)'
 ORACLE_ROW = "diagnosis: the true top's outline at its matches' median height (knows the outline)"
-ORACLE_ERODE_PX = 2
-"""The diagnosis takes the matches this far inside the top's outline in the left image: a
-window straddling the rim takes the disparity of whichever side is textured more."""
 TABLE_BIAS_EDGES_MM = (0.0, 0.5, 1.0, 2.0)
 """Buckets of the bare table's disparity error around the object at the scale of its top, in
 millimetres of depth (table_bias.py): the renderer's moire, which no averaging takes out."""
@@ -142,40 +138,8 @@ def grade(matched: MatchedDistributionScene, choosers: dict[str, BestPointChoose
                                                          matched.perfect[stride])
         errors[(OPENCV_ROW, stride)] = (np.full(3, np.nan) if matched.opencv_point is None
                                         else matched.opencv_point - target)
-        errors[(ORACLE_ROW, stride)] = oracle_top_point(scene) - target
+        errors[(ORACLE_ROW, stride)] = true_outline_point(scene) - target
     return errors
-
-
-def oracle_top_point(scene: SyntheticScene) -> np.ndarray:
-    """Return the point the true top's outline gives at its matches' median height (NaN: no
-    match inside it).
-
-    A diagnosis, not a selector: it knows which left pixels see the top (rig_tuning's
-    top_face_pixels) and takes the median world height of the matches ORACLE_ERODE_PX or more
-    inside them; the best point is then the centroid of those pixels' rays cut at that height,
-    each weighted by the area of the top it sees, as a selector's is of its face's. Its error
-    is the matcher's noise and bias on the top alone; what a selector loses beyond it, it
-    loses finding the top.
-    """
-    width, height = scene.left.width, scene.left.height
-    columns, rows = np.meshgrid(np.arange(width, dtype=float), np.arange(height, dtype=float))
-    seen = top_face_pixels(scene, columns.ravel(), rows.ravel()).reshape(height, width)
-    size = 2 * ORACLE_ERODE_PX + 1
-    inner = cv2.erode(seen.astype(np.uint8), np.ones((size, size), np.uint8)) > 0
-    u = np.rint(scene.points.u_left).astype(int)
-    v = np.rint(scene.points.v_left).astype(int)
-    inside = (u >= 0) & (u < width) & (v >= 0) & (v < height)
-    inside[inside] = inner[v[inside], u[inside]]
-    world = transform_points(scene.rig.world_from_left_camera(),
-                             scene.points.xyz[inside].astype(float))
-    if not len(world) or not seen.any():
-        return np.full(3, np.nan)
-    level = float(np.median(world[:, 2]))
-    centre, rays = left_pixel_rays(scene, columns[seen], rows[seen])
-    depth = (level - centre[2]) / rays[:, 2]  # rectified depth: the rays have unit depth
-    cut = centre + rays * depth[:, None]
-    # each pixel stands for the patch of the level top it sees, whose area grows as depth^3
-    return np.asarray(np.average(cut, axis=0, weights=depth ** 3), float)
 
 
 def summary(errors_m: np.ndarray, tolerance_mm: float) -> tuple[float, float, float, int]:

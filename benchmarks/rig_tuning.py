@@ -36,6 +36,11 @@ looking at the evaluation split (benchmarks/EXPERIMENTS.md, twenty-second sessio
 `--by-rig` adds the outcomes of the rigs that resolve depth to at most 1 mm per 0.1 px of
 disparity and of the others (rig_breakdown.py gives the same split of the evaluation run).
 
+`--true-outline` adds on how many scenes the true top's outline in the left image, cut at the
+median height of its own matches (true_top.py, the evaluation's diagnosis row), lies within the
+tolerance, and the fitted rules' outcomes on those scenes and on the others: what the chain
+loses finding the top, apart from what the matches lose.
+
 `--looks` adds the outcomes of each look at the pair that gave the points (the matches' own
 face, or one of the looks point_selectors.decision_area takes after it was refused:
 correlation_area.LOOK_*) and of each refusal status: where the points within 3 mm and the
@@ -103,6 +108,7 @@ from stereo_fuzzy_perception.simulation.scene_distribution import (  # noqa: E40
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene  # noqa: E402
 
 from benchmarks.rig_breakdown import depth_per_disparity_mm  # noqa: E402
+from benchmarks.true_top import top_face_pixels, true_outline_point  # noqa: E402
 
 SPLITS = ('train', 'validation')
 """The only splits this script reads: never the evaluation split."""
@@ -214,6 +220,23 @@ def outcomes_by_look(errors: dict[str, float | None], looks: dict[str, str],
                                                                        item[0]))]
 
 
+def true_outline_outcomes(errors: dict[str, float | None],
+                          matched: list[tuple[str, SyntheticScene]], tolerance_mm: float
+                          ) -> list[str]:
+    """Return the lines of --true-outline: on how many scenes the true top's outline at its
+    matches' median height (true_top.true_outline_point) lies within tolerance_mm, and the
+    fitted rules' outcomes ({label: error [mm] or None}) on those scenes and on the others."""
+    held: dict[str, float | None] = {}
+    missed: dict[str, float | None] = {}
+    for label, scene in matched:
+        error = 1000.0 * float(np.linalg.norm(true_outline_point(scene) - scene.target_world))
+        (held if error <= tolerance_mm else missed)[label] = errors[label]
+    return [f"the true top's outline at its matches' median height: within {tolerance_mm:g} mm "
+            f'on {len(held)} of {len(matched)} scenes',
+            f'  fitted rules on those {len(held)}: {outcome_counts(held, tolerance_mm)}',
+            f'  fitted rules on the other {len(missed)}: {outcome_counts(missed, tolerance_mm)}']
+
+
 def changed_outcomes(before: dict[str, float | None], after: dict[str, float | None],
                      tolerance_mm: float) -> list[str]:
     """Return a line per scene of both runs whose outcome class changed, or whose error moved
@@ -272,35 +295,6 @@ def decompose(matched: list[tuple[str, SyntheticScene]], config: AreaConfig,
 
 TOP_LEVEL_M = 0.002
 """A missed top pixel's match within this of the true top height stands on the top."""
-
-
-def left_pixel_rays(scene: SyntheticScene, columns: np.ndarray, rows: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray]:
-    """Return the left camera's centre (3,) and the rays (N, 3) in `world` of left rectified
-    pixels (columns, rows), each ray scaled to unit rectified depth."""
-    pose = scene.rig.world_from_left_camera()
-    projection, rotation = np.asarray(scene.left.P, float), np.asarray(scene.left.R, float)
-    rectified_rays = np.column_stack([(columns - projection[0, 2]) / projection[0, 0],
-                                      (rows - projection[1, 2]) / projection[1, 1],
-                                      np.ones(len(columns))])
-    world_rays: np.ndarray = rectified_rays @ rotation @ pose[:3, :3].T
-    return pose[:3, 3], world_rays
-
-
-def top_face_pixels(scene: SyntheticScene, columns: np.ndarray, rows: np.ndarray
-                    ) -> np.ndarray:
-    """Return which left rectified pixels (columns, rows) see the scene's true top face.
-
-    Each pixel's ray (rectified, taken back into the camera's optical frame and into `world`)
-    is cut with the top's plane; the top being the scene's highest surface, a pixel whose ray
-    meets it inside the prism sees it.
-    """
-    centre, world_rays = left_pixel_rays(scene, columns, rows)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        scale = (scene.prism.height - centre[2]) / world_rays[:, 2]
-    on_top = centre + world_rays * scale[:, None]
-    seen: np.ndarray = (scale > 0) & scene.prism.contains_xy(on_top[:, :2])
-    return seen
 
 
 def coverage_shares(area_pixels: set[tuple[int, int]], top_pixels: set[tuple[int, int]]
@@ -397,6 +391,11 @@ def main() -> None:
     parser.add_argument('--by-rig', action='store_true',
                         help='the outcomes of rigs on either side of 1 mm of depth per 0.1 px '
                              '(rig_breakdown.py)')
+    parser.add_argument('--true-outline', action='store_true',
+                        help="on how many scenes the true top's outline at its matches' median "
+                             'height lies within the tolerance (true_top.py: what the matches '
+                             'allow when the top is found perfectly), and the fitted rules on '
+                             'those scenes and on the others')
     parser.add_argument('--looks', action='store_true',
                         help='the outcomes of each look at the pair that gave the points '
                              '(correlation_area.LOOK_*), and of each refusal')
@@ -461,6 +460,8 @@ def main() -> None:
                 print('\n'.join(outcomes_by_resolution(
                     by_scene, {rig: depth_per_disparity_mm(rig, settings) for rig in rigs},
                     args.tolerance_mm)))
+            if args.true_outline:
+                print('\n'.join(true_outline_outcomes(by_scene, matched, args.tolerance_mm)))
             if args.looks:
                 looks = {row[1]: (row[3].look if np.isfinite(row[0])
                                   else f'refused: {row[3].status}') for row in rows}

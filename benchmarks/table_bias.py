@@ -21,7 +21,7 @@ import numpy as np
 from stereo_fuzzy_perception.core.best_point.object_segmentation import grid_step
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene, project_rectified
 
-from benchmarks.rig_tuning import left_pixel_rays
+from benchmarks.true_top import left_pixel_rays
 
 SQUARE_PX = 31
 """Side of the squares the table's errors are averaged over [px]: an object's top in the image

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 
 from benchmarks.disc_rim_probe import BAND_PX, far_side_band, left_pixel, true_outline
-from benchmarks.rig_tuning import top_face_pixels
+from benchmarks.true_top import top_face_pixels
 
 
 def _scene(kind: str, seed: int):

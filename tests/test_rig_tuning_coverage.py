@@ -4,7 +4,8 @@ import math
 
 import numpy as np
 
-from benchmarks.rig_tuning import coverage_shares, top_face_pixels
+from benchmarks.rig_tuning import coverage_shares
+from benchmarks.true_top import top_face_pixels
 
 
 def _scene(kind: str, seed: int):

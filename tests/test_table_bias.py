@@ -18,7 +18,7 @@ def _scene_with_exact_table_matches(step: int = 2):
         project_rectified,
     )
 
-    from benchmarks.rig_tuning import left_pixel_rays
+    from benchmarks.true_top import left_pixel_rays
 
     scene = GeometricSceneSource(rig=StereoRig()).scene(np.random.default_rng(4), 'cubic_square')
     columns, rows = np.meshgrid(np.arange(0, 640, step, dtype=float),

@@ -1,12 +1,11 @@
-"""benchmarks/rig_generalisation_benchmark.py's diagnosis row: the true top's outline at its
-matches' median height."""
+"""benchmarks/true_top.py: the best point the true top's outline gives at its matches' median
+height (the evaluation's diagnosis row)."""
 
 from dataclasses import replace
 
 import numpy as np
 
-from benchmarks.rig_generalisation_benchmark import oracle_top_point
-from benchmarks.rig_tuning import left_pixel_rays, top_face_pixels
+from benchmarks.true_top import left_pixel_rays, top_face_pixels, true_outline_point
 
 
 def _scene_matched_exactly(kind: str, seed: int, top_offset_m: float = 0.0,
@@ -39,7 +38,7 @@ def _scene_matched_exactly(kind: str, seed: int, top_offset_m: float = 0.0,
 
 
 def _error_mm(scene) -> np.ndarray:
-    return 1000.0 * (oracle_top_point(scene) - scene.target_world)
+    return 1000.0 * (true_outline_point(scene) - scene.target_world)
 
 
 def test_exact_matches_give_the_top_centre():
@@ -58,7 +57,7 @@ def test_the_matches_height_error_on_the_top_is_the_points_error():
 
 def test_a_rim_matched_on_the_table_is_left_out():
     # two pixels of rim at the table's height are 15-25 % of a small top's matches: inside the
-    # outline by ORACLE_ERODE_PX, the median does not see them at all
+    # outline by INNER_PX, the median does not see them at all
     scene, _ = _scene_matched_exactly('circle', 7, rim_at_table_px=2)
     assert np.linalg.norm(_error_mm(scene)) < 0.5
 
@@ -68,7 +67,7 @@ def test_no_match_on_the_top_gives_no_point():
     away = replace(scene.points, u_left=scene.points.u_left[~seen],
                    v_left=scene.points.v_left[~seen], u_right=scene.points.u_right[~seen],
                    xyz=scene.points.xyz[~seen], score=scene.points.score[~seen])
-    assert np.isnan(oracle_top_point(replace(scene, points=away))).all()
+    assert np.isnan(true_outline_point(replace(scene, points=away))).all()
 
 
 def test_the_rig_breakdown_reads_the_diagnosis_row_by_its_name():
@@ -76,3 +75,16 @@ def test_the_rig_breakdown_reads_the_diagnosis_row_by_its_name():
     from benchmarks.rig_generalisation_benchmark import ORACLE_ROW
 
     assert ROWS['true outline'] == ORACLE_ROW
+
+
+def test_the_tuning_tool_splits_the_outcomes_by_what_the_true_outline_gives():
+    from benchmarks.rig_tuning import true_outline_outcomes
+
+    exact, _ = _scene_matched_exactly('cubic_square', 3)
+    high, _ = _scene_matched_exactly('cylinder', 5, top_offset_m=0.006)
+    lines = true_outline_outcomes({'exact': 1.0, 'high': None},
+                                  [('exact', exact), ('high', high)], 3.0)
+    assert lines[0].endswith('within 3 mm on 1 of 2 scenes')
+    assert lines[1] == '  fitted rules on those 1: within 1, <= 10 mm 0, > 10 mm 0, no point 0'
+    assert lines[2] == ('  fitted rules on the other 1: within 0, <= 10 mm 0, > 10 mm 0, '
+                        'no point 1')
