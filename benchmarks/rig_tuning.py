@@ -39,7 +39,8 @@ disparity and of the others (rig_breakdown.py gives the same split of the evalua
 `--true-outline` adds on how many scenes the true top's outline in the left image, cut at the
 median height of its own matches (true_top.py, the evaluation's diagnosis row), lies within the
 tolerance, and the fitted rules' outcomes on those scenes and on the others: what the chain
-loses finding the top, apart from what the matches lose.
+loses finding the top, apart from what the matches lose. With `--looks` as well, the looks'
+outcomes are given again for the scenes whose matches hold the top.
 
 `--looks` adds the outcomes of each look at the pair that gave the points (the matches' own
 face, or one of the looks point_selectors.decision_area takes after it was refused:
@@ -220,17 +221,25 @@ def outcomes_by_look(errors: dict[str, float | None], looks: dict[str, str],
                                                                        item[0]))]
 
 
+def held_by_true_outline(matched: list[tuple[str, SyntheticScene]], tolerance_mm: float
+                         ) -> set[str]:
+    """Return the labels of the scenes whose true top's outline at its matches' median height
+    (true_top.true_outline_point) lies within tolerance_mm: those whose matches hold the top."""
+    return {label for label, scene in matched
+            if 1000.0 * float(np.linalg.norm(true_outline_point(scene) - scene.target_world))
+            <= tolerance_mm}
+
+
 def true_outline_outcomes(errors: dict[str, float | None],
-                          matched: list[tuple[str, SyntheticScene]], tolerance_mm: float
-                          ) -> list[str]:
-    """Return the lines of --true-outline: on how many scenes the true top's outline at its
-    matches' median height (true_top.true_outline_point) lies within tolerance_mm, and the
-    fitted rules' outcomes ({label: error [mm] or None}) on those scenes and on the others."""
-    held: dict[str, float | None] = {}
-    missed: dict[str, float | None] = {}
-    for label, scene in matched:
-        error = 1000.0 * float(np.linalg.norm(true_outline_point(scene) - scene.target_world))
-        (held if error <= tolerance_mm else missed)[label] = errors[label]
+                          matched: list[tuple[str, SyntheticScene]], tolerance_mm: float,
+                          held_labels: set[str] | None = None) -> list[str]:
+    """Return the lines of --true-outline: on how many scenes the matches hold the top
+    (held_by_true_outline, or held_labels when given), and the fitted rules' outcomes
+    ({label: error [mm] or None}) on those scenes and on the others."""
+    if held_labels is None:
+        held_labels = held_by_true_outline(matched, tolerance_mm)
+    held = {label: errors[label] for label, _ in matched if label in held_labels}
+    missed = {label: errors[label] for label, _ in matched if label not in held_labels}
     return [f"the true top's outline at its matches' median height: within {tolerance_mm:g} mm "
             f'on {len(held)} of {len(matched)} scenes',
             f'  fitted rules on those {len(held)}: {outcome_counts(held, tolerance_mm)}',
@@ -460,12 +469,20 @@ def main() -> None:
                 print('\n'.join(outcomes_by_resolution(
                     by_scene, {rig: depth_per_disparity_mm(rig, settings) for rig in rigs},
                     args.tolerance_mm)))
-            if args.true_outline:
-                print('\n'.join(true_outline_outcomes(by_scene, matched, args.tolerance_mm)))
+            held = (held_by_true_outline(matched, args.tolerance_mm) if args.true_outline
+                    else None)
+            if held is not None:
+                print('\n'.join(true_outline_outcomes(by_scene, matched, args.tolerance_mm,
+                                                       held)))
             if args.looks:
                 looks = {row[1]: (row[3].look if np.isfinite(row[0])
                                   else f'refused: {row[3].status}') for row in rows}
                 print('\n'.join(outcomes_by_look(by_scene, looks, args.tolerance_mm)))
+                if held is not None:
+                    print('the same, on the scenes whose matches hold the top (--true-outline):')
+                    print('\n'.join(outcomes_by_look(
+                        {label: error for label, error in by_scene.items() if label in held},
+                        looks, args.tolerance_mm)))
         if name != 'centroid':
             continue
         rows.sort(key=lambda row: -np.inf if np.isnan(row[0]) else -row[0])

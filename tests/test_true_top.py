@@ -78,7 +78,7 @@ def test_the_rig_breakdown_reads_the_diagnosis_row_by_its_name():
 
 
 def test_the_tuning_tool_splits_the_outcomes_by_what_the_true_outline_gives():
-    from benchmarks.rig_tuning import true_outline_outcomes
+    from benchmarks.rig_tuning import held_by_true_outline, true_outline_outcomes
 
     exact, _ = _scene_matched_exactly('cubic_square', 3)
     high, _ = _scene_matched_exactly('cylinder', 5, top_offset_m=0.006)
@@ -88,3 +88,7 @@ def test_the_tuning_tool_splits_the_outcomes_by_what_the_true_outline_gives():
     assert lines[1] == '  fitted rules on those 1: within 1, <= 10 mm 0, > 10 mm 0, no point 0'
     assert lines[2] == ('  fitted rules on the other 1: within 0, <= 10 mm 0, > 10 mm 0, '
                         'no point 1')
+    held = held_by_true_outline([('exact', exact), ('high', high)], 3.0)
+    assert held == {'exact'}
+    assert true_outline_outcomes({'exact': 1.0, 'high': None},
+                                 [('exact', exact), ('high', high)], 3.0, held) == lines
