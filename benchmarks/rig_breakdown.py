@@ -29,6 +29,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'src' / 'stereo_fuzzy_perception'))
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 from stereo_fuzzy_perception.simulation.scene_distribution import (  # noqa: E402
@@ -37,9 +39,10 @@ from stereo_fuzzy_perception.simulation.scene_distribution import (  # noqa: E40
     draw_rig,
 )
 
+from benchmarks.true_top import DIAGNOSIS_ROW  # noqa: E402
+
 ROWS = {'fitted rules': 'fuzzy_fitted',
-        'true outline': "diagnosis: the true top's outline at its matches' median height "
-                        '(knows the outline)',
+        'true outline': DIAGNOSIS_ROW,
         'ceiling': 'ceiling: fuzzy_fitted',
         'OpenCV': 'opencv (SGBM + largest component + top band)'}
 """Columns of the table: the CSV's row names (rig_generalisation_benchmark.py). `true outline`

@@ -84,12 +84,12 @@ from stereo_fuzzy_perception.simulation.scene_model import OBJECT_TYPES  # noqa:
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene  # noqa: E402
 
 from benchmarks.table_bias import table_bias_mm  # noqa: E402
-from benchmarks.true_top import true_outline_point  # noqa: E402
+from benchmarks.true_top import DIAGNOSIS_ROW, true_outline_point  # noqa: E402
 
 SELECTOR_ORDER = ('fuzzy_fitted', 'fuzzy_chapter', 'centroid', 'max_score', 'neural_network')
 assert set(SELECTOR_ORDER) == set(SELECTORS)
 OPENCV_ROW = 'opencv (SGBM + largest component + top band)'
-ORACLE_ROW = "diagnosis: the true top's outline at its matches' median height (knows the outline)"
+ORACLE_ROW = DIAGNOSIS_ROW
 TABLE_BIAS_EDGES_MM = (0.0, 0.5, 1.0, 2.0)
 """Buckets of the bare table's disparity error around the object at the scale of its top, in
 millimetres of depth (table_bias.py): the renderer's moire, which no averaging takes out."""

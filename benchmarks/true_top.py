@@ -17,6 +17,11 @@ import numpy as np
 from stereo_fuzzy_perception.core.rig_geometry import transform_points
 from stereo_fuzzy_perception.simulation.synthetic_scenes import SyntheticScene
 
+DIAGNOSIS_ROW = ("diagnosis: the true top's outline at its matches' median height "
+                 '(knows the outline)')
+"""The row true_outline_point fills in rig_generalisation_benchmark.py's tables and CSV, and
+that rig_breakdown.py reads back."""
+
 INNER_PX = 2
 """true_outline_point takes the matches this far inside the top's outline in the left image: a
 window straddling the rim takes the disparity of whichever side is textured more."""

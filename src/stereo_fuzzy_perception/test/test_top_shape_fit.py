@@ -287,7 +287,7 @@ def test_a_fit_found_again_from_every_start_further_off_than_a_move_is_taken_who
     found_by_no_start = _moved_to(0.109, spread_m=0.0, found_again=0)
     for moved in (too_far, not_found_again, unclear, found_by_one_start, found_by_no_start):
         assert moved == pytest.approx(CHAIN_POINT)
-    # within max_move_m the spread alone decides, as before
+    # within max_move_m the spread alone decides
     assert _moved_to(0.104, spread_m=0.001, found_again=1) == pytest.approx([0.102, 0.1, 0.05])
 
 
