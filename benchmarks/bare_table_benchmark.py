@@ -14,6 +14,7 @@ Beside it, in the same run, the plain OpenCV pipeline of rig_generalisation_benc
     nice python benchmarks/bare_table_benchmark.py                    # 50 scenes per type
     nice python benchmarks/bare_table_benchmark.py --split train      # where changes are tuned
     nice python benchmarks/bare_table_benchmark.py --split train --rig-pool-seed 15
+    nice python benchmarks/bare_table_benchmark.py --encoding rgb8    # colour cameras
 
 `--rig-pool-seed N` (train or validation only) draws the split's rigs from the pool of seed N,
 as rig_tuning.py does: bare tables seen by rigs neither tuning nor the evaluation split used,
@@ -68,7 +69,7 @@ OPENCV = 'opencv'
 
 
 def matched_tables(split: str, per_type: int, strides: list[int],
-                   settings: DistributionSettings, cache: Path | None
+                   settings: DistributionSettings, cache: Path | None, encoding: str = 'mono8'
                    ) -> Iterator[MatchedDistributionScene]:
     """Yield the split's scenes without their object, rendered and matched at every stride
     (with the OpenCV pipeline's point); with a cache directory, from the file a run with the
@@ -77,14 +78,16 @@ def matched_tables(split: str, per_type: int, strides: list[int],
     if cache is not None:
         pool = ('' if settings.rig_pool_seed == DEFAULT_SETTINGS.rig_pool_seed
                 else f'_pool{settings.rig_pool_seed}')
+        colour = '' if encoding == 'mono8' else f'_{encoding}'
         path = cache / (f'bare_tables_{split}_{per_type}_stride{"-".join(map(str, strides))}'
-                        f'{pool}.pickle')
+                        f'{pool}{colour}.pickle')
         if path.is_file():
             yield from pickle.loads(path.read_bytes())
             return
     kept = []
     for planned in split_plan(split, per_type, settings):
-        matched = match_scene(bare_table(planned.draw()), strides, opencv=True)
+        matched = match_scene(bare_table(planned.draw()), strides, opencv=True,
+                              encoding=encoding)
         if path is not None:
             kept.append(matched)
         yield matched
@@ -110,6 +113,9 @@ def main() -> None:
     parser.add_argument('--cache', metavar='DIR',
                         help='keep the rendered and matched tables here and read them back on '
                              'the next run (development: module docstring)')
+    parser.add_argument('--encoding', default='mono8', choices=('mono8', 'rgb8'),
+                        help='grey cameras (mono8) or colour ones (rgb8: the colour silhouette '
+                             'is looked for too)')
     args = parser.parse_args()
     settings = DEFAULT_SETTINGS
     if args.rig_pool_seed is not None:
@@ -127,7 +133,7 @@ def main() -> None:
     start = time.perf_counter()
     for index, matched in enumerate(matched_tables(
             args.split, args.per_type, strides, settings,
-            Path(args.cache) if args.cache else None)):
+            Path(args.cache) if args.cache else None, args.encoding)):
         scene = matched.scene
         table = scene.scene.surface_texture_family
         tables[table] += 1
@@ -159,7 +165,8 @@ def main() -> None:
         '',
         f'`{command}`: the {count} scenes of the {args.split} split ({args.per_type} per object '
         "type) rendered with the object out of view; correlation_node's default settings. A "
-        f'point given is a point where nothing is (goal: none). {elapsed:.0f} s.',
+        f'point given is a point where nothing is (goal: none). {elapsed:.0f} s.'
+        + (f' Cameras rendered {args.encoding}.' if args.encoding != 'mono8' else ''),
         '',
         '| decided by | points given | share | refusals |',
         '|---|---:|---:|---|']
@@ -185,6 +192,8 @@ def main() -> None:
     suffix = '' if args.split == 'evaluation' else f'_{args.split}'
     if args.rig_pool_seed is not None:
         suffix += f'_pool{args.rig_pool_seed}'
+    if args.encoding != 'mono8':
+        suffix += f'_{args.encoding}'
     (output / f'bare_tables{suffix}.md').write_text(report + '\n')
     print(f'\nwrote {output / f"bare_tables{suffix}.md"}', file=sys.stderr)
 

@@ -44,8 +44,8 @@ from stereo_fuzzy_perception.core.best_point.correlation_area import (  # noqa: 
     AreaConfig,
 )
 from stereo_fuzzy_perception.core.best_point.plain_top_height import (  # noqa: E402
-    _plane_disparity,
-    _sample,
+    plane_disparity,
+    sample_rows,
 )
 from stereo_fuzzy_perception.core.best_point.point_selectors import decision_area  # noqa: E402
 from stereo_fuzzy_perception.core.best_point.work_surface import SurfacePlane  # noqa: E402
@@ -114,8 +114,8 @@ def rim_heights(scene: SyntheticScene, surface: SurfacePlane, max_height_m: floa
     left_smooth, right_smooth = (
         cv2.GaussianBlur(part.pixels.astype(np.float32), (0, 0), SMOOTHING_SIGMA_PX)
         for part in (left_image, right_image))
-    to_right = _plane_disparity(scene.left, scene.right, scene.rig.world_from_left_camera(),
-                                surface)
+    to_right = plane_disparity(scene.left, scene.right, scene.rig.world_from_left_camera(),
+                               surface)
     u, v = columns.astype(float), rows.astype(float)
     grey = left_smooth[rows - left_image.y, columns - left_image.x]
     grey = grey - grey.mean()
@@ -127,7 +127,7 @@ def rim_heights(scene: SyntheticScene, surface: SurfacePlane, max_height_m: floa
         if right_u.min() - right_image.x < 1 or (
                 right_u.max() - right_image.x > right_image.pixels.shape[1] - 2):
             continue
-        right_grey = _sample(right_smooth, right_u, v, right_image)
+        right_grey = sample_rows(right_smooth, right_u, v, right_image)
         right_grey = right_grey - right_grey.mean()
         norm = float(np.linalg.norm(grey) * np.linalg.norm(right_grey))
         if norm > 0.0:

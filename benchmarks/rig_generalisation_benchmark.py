@@ -32,6 +32,7 @@ miss. Mean and max are over the scenes with a point.
     nice python benchmarks/rig_generalisation_benchmark.py --quick   # 6 per type, stride 3
     nice python benchmarks/rig_generalisation_benchmark.py --oversampling 3 --per-type 25 \
         --point-stride 1    # antialiased images, as a camera's pixels integrate light
+    nice python benchmarks/rig_generalisation_benchmark.py --encoding rgb8   # colour cameras
 
 TinyRenderer does not antialias: every texture edge falls on whole pixels, in each camera
 independently, and the disparities of a textured table scatter by a few tenths of a pixel
@@ -98,10 +99,18 @@ TYPE_TITLES = {'circle': 'Circle', 'cylinder': 'Cylinder', 'cubic_rectangle': 'C
                'cubic_square': 'Cubic Square'}
 
 
-def base_choosers(compare: list[str]) -> dict[str, BestPointChooser]:
-    """Return the packaged selectors and the extra rule bases / weights to compare."""
+GREY_LOOKS_ROW = 'fuzzy_fitted, grey looks only (colour_silhouette false)'
+"""With colour cameras, the fitted rules without the colour look: its gain on the same pairs."""
+
+
+def base_choosers(compare: list[str], colour: bool = False) -> dict[str, BestPointChooser]:
+    """Return the packaged selectors and the extra rule bases / weights to compare (with colour
+    cameras, the fitted rules with the colour look off too)."""
     rig = StereoRig()
     result = {name: BestPointChooser.create(name, AreaConfig(), rig) for name in SELECTOR_ORDER}
+    if colour:
+        result[GREY_LOOKS_ROW] = BestPointChooser.create(
+            'fuzzy_fitted', AreaConfig(colour_silhouette=False), rig)
     for item in compare:
         label, _, path = item.partition('=')
         neural = path.endswith('.npz')
@@ -220,6 +229,10 @@ def main() -> None:
     parser.add_argument('--oversampling', type=int, default=1, choices=(1, 3, 5),
                         help='render each pixel as the mean of K x K (antialiased, as a '
                              "camera's pixel integrates light); 1: TinyRenderer as it is")
+    parser.add_argument('--encoding', default='mono8', choices=('mono8', 'rgb8'),
+                        help='render grey cameras (mono8) or colour ones (rgb8: the matches '
+                             'carry the left colour image, for the top from the colour '
+                             'silhouette, colour_silhouette.py)')
     parser.add_argument('--no-second-look', action='store_true',
                         help="decide at each stride only, as with fuzzy_best_point_node's "
                              'second_look_stride_one false')
@@ -228,7 +241,7 @@ def main() -> None:
     if args.quick:
         args.per_type, args.point_stride = 6, [3]
     strides = sorted(set(args.point_stride))
-    choosers = base_choosers(args.compare)
+    choosers = base_choosers(args.compare, colour=args.encoding != 'mono8')
     rows = [*choosers, *(f'ceiling: {name}' for name in SELECTOR_ORDER), OPENCV_ROW,
             ORACLE_ROW]
     results: dict[tuple[str, int], dict[str, list[np.ndarray]]] = {
@@ -238,7 +251,8 @@ def main() -> None:
     plan = split_plan('evaluation', args.per_type)
     start = time.perf_counter()
     for index, matched in enumerate(match_plan(plan, strides, ceiling=True, opencv=True,
-                                               jobs=args.jobs, oversampling=args.oversampling)):
+                                               jobs=args.jobs, oversampling=args.oversampling,
+                                               encoding=args.encoding)):
         scene = matched.scene
         table_bias = table_bias_mm(matched.matched[strides[0]])
         for (row, stride), error in grade(matched, choosers,
@@ -277,7 +291,10 @@ def main() -> None:
         '/ max error [mm] over the scenes with a point; goals (>= 95 %, <= 1.5 mm, <= 10 mm) '
         f'missed in bold. Render + match + grade: {elapsed:.0f} s with {args.jobs} processes.'
         + (f' Images rendered antialiased ({args.oversampling}x{args.oversampling} samples a '
-           'pixel); the depth maps of the ceiling are not.' if args.oversampling > 1 else '')]
+           'pixel); the depth maps of the ceiling are not.' if args.oversampling > 1 else '')
+        + (' Colour cameras (rgb8): the selectors look for the colour silhouette first '
+           f'(`{GREY_LOOKS_ROW}`: without it, on the same pairs); the ceiling rows have perfect '
+           'depth and no image.' if args.encoding != 'mono8' else '')]
     for stride in strides:
         sections.append(table(results, rows, stride, args.tolerance_mm))
     focus_stride = strides[0]
@@ -292,7 +309,8 @@ def main() -> None:
     output = Path(args.output)
     output.mkdir(parents=True, exist_ok=True)
     suffix = ('_quick' if args.quick else '') + (
-        f'_oversampled{args.oversampling}' if args.oversampling > 1 else '')
+        f'_oversampled{args.oversampling}' if args.oversampling > 1 else '') + (
+        f'_{args.encoding}' if args.encoding != 'mono8' else '')
     (output / f'rig_generalisation{suffix}.md').write_text(report + '\n')
     with (output / f'rig_generalisation{suffix}_scenes.csv').open('w', newline='') as stream:
         writer = csv.DictWriter(stream, fieldnames=list(records[0]))

@@ -33,6 +33,10 @@ looking at the evaluation split (benchmarks/EXPERIMENTS.md, twenty-second sessio
 
     nice python benchmarks/rig_tuning.py --per-type 50 --split validation --rig-pool-seed 17
 
+`--encoding rgb8` renders the splits with colour cameras (a cache of their own): the matches
+carry both colour images, and the top from the colour silhouette is looked for first
+(colour_silhouette.py).
+
 `--by-rig` adds the outcomes of the rigs that resolve depth to at most 1 mm per 0.1 px of
 disparity and of the others (rig_breakdown.py gives the same split of the evaluation run).
 
@@ -119,8 +123,8 @@ RESOLUTION_SPLIT_MM = 1.0
 
 
 def scenes(split: str, per_type: int, stride: int, cache: Path, jobs: int,
-           oversampling: int = 1, settings: DistributionSettings = DEFAULT_SETTINGS
-           ) -> list[tuple[str, SyntheticScene]]:
+           oversampling: int = 1, settings: DistributionSettings = DEFAULT_SETTINGS,
+           encoding: str = 'mono8') -> list[tuple[str, SyntheticScene]]:
     """Return (label, matched scene) of the split's scenes (cached after the first run).
 
     With settings of another rig_pool_seed, the split's rigs are drawn from that pool: rigs
@@ -133,7 +137,9 @@ def scenes(split: str, per_type: int, stride: int, cache: Path, jobs: int,
     size = ('' if (settings.image_width, settings.image_height)
             == (DEFAULT_SETTINGS.image_width, DEFAULT_SETTINGS.image_height)
             else f'_{settings.image_width}x{settings.image_height}')
-    path = cache / f'rig_tuning_{split}_{per_type}_{stride}{rendering}{pool}{size}.pickle'
+    colour = '' if encoding == 'mono8' else f'_{encoding}'
+    path = cache / (f'rig_tuning_{split}_{per_type}_{stride}{rendering}{pool}{size}{colour}'
+                    '.pickle')
     if path.exists():
         loaded: list[tuple[str, SyntheticScene]] = pickle.loads(path.read_bytes())
         return loaded
@@ -141,7 +147,8 @@ def scenes(split: str, per_type: int, stride: int, cache: Path, jobs: int,
     result = [(f'seed {item.scene.seed} rig {item.scene.rig.index} '
                f'top {item.scene.top_width_px:.0f} px {item.scene.scene.object_texture_family}',
                item.matched[stride])
-              for item in match_plan(plan, (stride,), jobs=jobs, oversampling=oversampling)]
+              for item in match_plan(plan, (stride,), jobs=jobs, oversampling=oversampling,
+                                     encoding=encoding)]
     cache.mkdir(parents=True, exist_ok=True)
     path.write_bytes(pickle.dumps(result))
     return result
@@ -370,6 +377,9 @@ def main() -> None:
                         help='train (tune here) or validation (check here)')
     parser.add_argument('--oversampling', type=int, default=1, choices=(1, 3, 5),
                         help='render each pixel as the mean of K x K (antialiased)')
+    parser.add_argument('--encoding', default='mono8', choices=('mono8', 'rgb8'),
+                        help='grey cameras, or colour ones (the top from the colour '
+                             'silhouette is looked for first)')
     parser.add_argument('--point-stride', type=int, default=1)
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--tolerance-mm', type=float, default=3.0)
@@ -422,9 +432,10 @@ def main() -> None:
                          'at least 64x48')
         settings = replace(settings, image_width=int(width), image_height=int(height))
     matched = scenes(args.split, args.per_type, args.point_stride, Path(args.cache), args.jobs,
-                     args.oversampling, settings)[args.from_scene * len(OBJECT_TYPES):]
+                     args.oversampling, settings, args.encoding)[
+                         args.from_scene * len(OBJECT_TYPES):]
     at_stride_one = (dict(scenes(args.split, args.per_type, 1, Path(args.cache), args.jobs,
-                                 args.oversampling, settings))
+                                 args.oversampling, settings, args.encoding))
                      if args.second_look and args.point_stride > 1 else {})
     config = replace(AreaConfig(), **{item.partition('=')[0]: float(item.partition('=')[2])
                                       for item in args.area})

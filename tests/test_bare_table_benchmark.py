@@ -36,9 +36,9 @@ def test_a_cache_gives_the_same_tables_back_without_rendering_them_again(tmp_pat
     rendered = []
     render = bare_table_benchmark.match_scene
 
-    def counted(scene, strides, opencv):
+    def counted(scene, strides, **options):
         rendered.append(scene.seed)
-        return render(scene, strides, opencv=opencv)
+        return render(scene, strides, **options)
 
     monkeypatch.setattr(bare_table_benchmark, 'match_scene', counted)
     settings = dataclasses.replace(bare_table_benchmark.DEFAULT_SETTINGS, rig_pool_seed=15)

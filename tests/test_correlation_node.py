@@ -283,3 +283,41 @@ def test_pair_timing_is_sent_only_to_a_subscriber(harness):
     assert events == sorted(events), values
     assert float(values['match [ms]']) > 0.0 and float(values['cpu [ms]']) > 0.0
     assert values['matched'].startswith('whole'), values
+
+
+def test_colour_cameras_send_both_rectified_images_in_colour_too(harness):
+    """bgr8 cameras: the grey pair is matched, and the parts of both images the matcher read
+    travel in colour (rgb8) for the fuzzy stage's colour silhouette; grey cameras send none."""
+    from std_msgs.msg import Header
+    from stereo_fuzzy_perception.nodes.conversions import (
+        array_to_image,
+        stereo_matches_colour,
+        stereo_matches_image,
+    )
+
+    rig = harness(window_size=9, disparity_range=32)
+    rig.publish_and_wait_processed(stereo_pair(stamp_sec=3))
+    wait_until(lambda: rig.matches, TIMEOUT, 'the grey pair matched', rig.executor)
+    assert stereo_matches_colour(rig.matches[-1]) is None
+    assert stereo_matches_colour(rig.matches[-1], 'right') is None
+    pair = stereo_pair(stamp_sec=4)
+    left, right = textured_pair()
+    header = Header(frame_id='left_camera_optical_frame')
+    # blue, green, red: a reddish surface, each channel the texture at its own scale
+    tint = np.array([0.5, 0.75, 1.0])
+    for side, grey in (('left', left), ('right', right)):
+        bgr = np.clip(grey[..., None] * tint, 0, 255).astype(np.uint8)
+        setattr(pair, f'{side}_image', array_to_image(bgr, 'bgr8', header))
+    rig.publish_and_wait_processed(pair)
+    wait_until(lambda: rig.matches and rig.matches[-1].header.stamp.sec == 4, TIMEOUT,
+               'the colour pair matched', rig.executor)
+    message = rig.matches[-1]
+    for side in ('left', 'right'):
+        colour = stereo_matches_colour(message, side)
+        grey = stereo_matches_image(message, side)
+        assert colour is not None and grey is not None, side
+        assert colour.pixels.shape == grey.pixels.shape + (3,)
+        assert (colour.x, colour.y) == (grey.x, grey.y)
+        lit = colour.pixels[..., 0] > 40
+        red_over_blue = colour.pixels[lit, 0].astype(float) / np.maximum(colour.pixels[lit, 2], 1)
+        assert np.median(red_over_blue) == pytest.approx(2.0, rel=0.05), 'RGB order, not BGR'

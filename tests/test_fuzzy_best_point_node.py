@@ -175,7 +175,13 @@ def test_malformed_input_is_reported_and_the_node_keeps_going(harness):
     run.send(mislabelled, 4)
     assert run.decisions[3].status.startswith(
         'malformed_input: right_rectified is 3x2 but right_rectified_roi says 0x0')
-    run.send(matches_message(scene, stamp_sec=9), 5)
+    stray = matches_message(scene, stamp_sec=10)
+    stray.left_rectified_colour = Image(height=2, width=2, encoding='rgb8', step=6,
+                                        data=b'\0' * 12)
+    run.send(stray, 5)
+    assert run.decisions[4].status.startswith(
+        'malformed_input: left_rectified_colour is 2x2 but left_rectified_roi says 0x0')
+    run.send(matches_message(scene, stamp_sec=9), 6)
     wait_until(lambda: run.points, TIMEOUT, 'a best point after bad inputs', run.executor)
     assert [p.header.stamp.sec for p in run.points] == [9]
 
@@ -184,9 +190,9 @@ def test_malformed_input_is_reported_and_the_node_keeps_going(harness):
             return False
         values = {kv.key: kv.value for kv in run.diagnostics[-1].status[0].values}
         return values.get('decisions made') == '1' and values.get(
-            'refused malformed_input') == '4'
+            'refused malformed_input') == '5'
 
-    wait_until(counted, TIMEOUT, 'diagnostics counting 1 made and 4 malformed', run.executor)
+    wait_until(counted, TIMEOUT, 'diagnostics counting 1 made and 5 malformed', run.executor)
     assert run.diagnostics[-1].status[0].hardware_id == 'fuzzy_best_point_node', (
         'hardware_id names the node (it drives no device)')
 

@@ -2,11 +2,14 @@
 
 fuzzy_best_point_node must place matches made by a rig that its rig.* defaults do not describe
 when given that rig's pose file or its /tf_static; it must refuse a configured baseline that the
-calibration contradicts; rig_transforms_node must publish a pose file as standard TF that a late
-subscriber still receives. Each test has a ROS domain of its own and waits on messages.
+calibration contradicts, and use the colour images that come with the matches;
+rig_transforms_node must publish a pose file as standard TF that a late subscriber still
+receives. Each test has a ROS domain of its own and waits on messages.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -501,3 +504,43 @@ def test_installed_rig_transforms_node_serves_the_demo_pose_file_and_refuses_a_b
     assert refused.process.returncode == 1
     assert 'cannot start: ' in refused.output() and 'broken.yaml' in refused.output()
     assert 'Traceback' not in refused.output()
+
+
+def test_colour_matches_let_the_node_find_a_disc_its_grey_looks_refuse(harness, tmp_path):
+    """A far rig's 5 mm disc rendered by colour cameras (training scene 20, as in the package's
+    test_colour_silhouette.py): the node given its matches with the colour images finds its
+    top; given the same matches without them, it refuses the pair."""
+    from std_msgs.msg import Header
+    from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+    from stereo_fuzzy_perception.core.pose_file import write_pose_file
+    from stereo_fuzzy_perception.core.rig_pose import chapter_left_camera_transform
+    from stereo_fuzzy_perception.nodes.conversions import stereo_matches_message
+    from stereo_fuzzy_perception.simulation.distribution_source import match_scene
+    from stereo_fuzzy_perception.simulation.scene_distribution import split_plan
+
+    matched = match_scene(split_plan('train', 50)[20].draw(), (1,), encoding='rgb8')
+    scene = matched.matched[1]
+    pose_file = tmp_path / 'rig_pose.yaml'
+    write_pose_file(pose_file, [chapter_left_camera_transform(scene.rig)])
+    run = harness({'rig_pose_file': str(pose_file), 'rig.baseline_m': scene.rig.baseline_m})
+    header = Header(frame_id='left_camera_optical_frame')
+    calibration = StereoCalibration(scene.left, scene.right)
+    header.stamp.sec = 1
+    grey_points = replace(scene.points, left_colour=None, right_colour=None)
+    grey = run.send(stereo_matches_message(header, calibration, grey_points, matched.matcher,
+                                           1), 1)
+    assert not grey.has_best_point, grey.status
+    header.stamp.sec = 2
+    colour = run.send(stereo_matches_message(header, calibration, scene.points,
+                                             matched.matcher, 1), 2)
+    assert colour.status == 'ok', colour.status
+    assert best_point_error_mm(colour, scene) <= 3.0
+
+    def counted():
+        if not run.diagnostics:
+            return False
+        values = {kv.key: kv.value for kv in run.diagnostics[-1].status[0].values}
+        return (values.get('matches with colour images'),
+                values.get('points from the colour silhouette')) == ('1', '1')
+
+    wait_until(counted, TIMEOUT, 'diagnostics counting the colour point', run.executor)

@@ -181,3 +181,73 @@ def test_a_malformed_rectified_image_is_named():
     short.left_rectified.data = short.left_rectified.data[:100]
     with pytest.raises(ImageEncodingError, match='left_rectified: data holds 100 bytes'):
         stereo_matches_image(short)
+
+
+def _matches_with_colour(colour, x, y):
+    from std_msgs.msg import Header
+    from stereo_fuzzy_perception.core.camera_model import StereoCalibration
+    from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
+    from stereo_fuzzy_perception.core.matching.window_matcher import MatcherConfig
+    from stereo_fuzzy_perception.core.rig_geometry import StereoRig
+    from stereo_fuzzy_perception.nodes.conversions import stereo_matches_message
+    from stereo_fuzzy_perception.simulation.synthetic_scenes import rectified_calibration
+
+    points = MatchedPoints.empty()
+    points.left_image = RectifiedImage(colour[..., 1].copy(), x, y, 11)
+    points.left_colour = RectifiedImage(colour, x, y, 11)
+    calibration = StereoCalibration(*rectified_calibration(StereoRig(), width=64, height=48))
+    return stereo_matches_message(Header(frame_id='left'), calibration, points,
+                                  MatcherConfig(window_size=11))
+
+
+def test_the_left_colour_image_travels_with_the_matches():
+    from stereo_fuzzy_perception.nodes.conversions import stereo_matches_colour
+
+    colour = np.random.default_rng(5).integers(0, 255, (20, 30, 3), dtype=np.uint8)
+    msg = _matches_with_colour(colour, 5, 7)
+    assert msg.left_rectified_colour.encoding == 'rgb8'
+    image = stereo_matches_colour(msg)
+    assert image is not None
+    np.testing.assert_array_equal(image.pixels, colour)
+    assert (image.x, image.y) == (5, 7)
+    assert stereo_matches_colour(_matches_with_image(colour[..., 0].copy(), 5, 7)) is None
+
+
+@pytest.mark.parametrize('spoil, message', [
+    (lambda msg: setattr(msg.left_rectified_colour, 'encoding', 'bgr8'),
+     "left_rectified_colour: encoding 'bgr8', need rgb8"),
+    (lambda msg: setattr(msg.left_rectified_roi, 'width', 29),
+     'left_rectified_colour is 30x20 but left_rectified_roi says 29x20'),
+    (lambda msg: setattr(msg.left_rectified_colour, 'data', b'\0' * 10),
+     'left_rectified_colour: '),
+])
+def test_a_malformed_colour_image_is_named(spoil, message):
+    from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError
+    from stereo_fuzzy_perception.nodes.conversions import stereo_matches_colour
+
+    msg = _matches_with_colour(np.zeros((20, 30, 3), dtype=np.uint8), 0, 0)
+    spoil(msg)
+    with pytest.raises(ImageEncodingError, match=message):
+        stereo_matches_colour(msg)
+
+
+@pytest.mark.parametrize('encoding, order', [('rgb8', (0, 1, 2)), ('bgr8', (2, 1, 0)),
+                                             ('8UC3', (2, 1, 0)), ('rgba8', (0, 1, 2)),
+                                             ('bgra8', (2, 1, 0))])
+def test_colour_encodings_come_out_as_rgb(encoding, order):
+    from stereo_fuzzy_perception.core.image_encoding import to_rgb
+
+    channels = 4 if encoding.endswith('a8') else 3
+    image = np.zeros((2, 3, channels), dtype=np.uint8)
+    for channel, value in enumerate((10, 20, 30)):
+        image[..., channel] = value
+    rgb = to_rgb(image, encoding)
+    assert rgb is not None and rgb.shape == (2, 3, 3)
+    assert tuple(int(rgb[0, 0, k]) for k in range(3)) == tuple((10, 20, 30)[k] for k in order)
+
+
+def test_grey_encodings_have_no_colour():
+    from stereo_fuzzy_perception.core.image_encoding import to_rgb
+
+    assert to_rgb(np.zeros((2, 3), dtype=np.uint8), 'mono8') is None
+    assert to_rgb(np.zeros((2, 3), dtype=np.uint16), 'mono16') is None

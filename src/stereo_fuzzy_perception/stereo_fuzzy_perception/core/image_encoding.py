@@ -1,4 +1,5 @@
-"""Image encodings the chain accepts, and their conversion to one grey channel.
+"""Image encodings the chain accepts, and their conversion to one grey channel (and, for
+colour encodings, to RGB).
 
 ROS-free: arrays in, arrays out. Names follow sensor_msgs/image_encodings.
 """
@@ -57,3 +58,22 @@ def to_gray(image: np.ndarray, encoding: str) -> np.ndarray:
     if encoding in ('bgra8',):
         return cv2.cvtColor(image, cv2.COLOR_BGRA2GRAY)
     return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+
+
+def to_rgb(image: np.ndarray, encoding: str) -> np.ndarray | None:
+    """Return an image of a colour encoding as HxWx3 RGB (its dtype kept), or None for a grey
+    one (the chain then has no colour to look at). 8UC3 is taken as bgr8, as OpenCV writes it.
+
+    Raises:
+        ImageEncodingError: For an unsupported encoding.
+    """
+    check_encoding(encoding)
+    if image.ndim == 2 or SUPPORTED_ENCODINGS[encoding][1] == 1:
+        return None
+    if encoding == 'rgb8':
+        return image
+    if encoding == 'rgba8':
+        return np.ascontiguousarray(image[..., :3])
+    if encoding == 'bgra8':
+        return cv2.cvtColor(image, cv2.COLOR_BGRA2RGB)
+    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)

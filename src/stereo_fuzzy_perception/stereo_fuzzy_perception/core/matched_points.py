@@ -12,7 +12,7 @@ class RectifiedImage:
     """The part of a rectified image (left or right) that matches were found in.
 
     Attributes:
-        pixels: (H, W) grey image, uint8 or uint16.
+        pixels: (H, W) grey image, uint8 or uint16; or (H, W, 3) RGB for the colour image.
         x: Column of pixels[0, 0] in the rectified image [px].
         y: Row of pixels[0, 0] [px].
         window_size: Side of the correlation window the matches were found with [px].
@@ -40,6 +40,11 @@ class MatchedPoints:
         right_image: The right rectified image, the part the matcher read, when it came with
             them: a plain top's height is measured from where its plain region lies in it
             (plain_face.py).
+        left_colour: The same part of the left rectified image in colour (RGB), when the
+            cameras gave colour: the fuzzy stage takes the object's silhouette from it
+            (colour_silhouette.py).
+        right_colour: The same part of the right rectified image as right_image, in colour:
+            where the silhouette's rim lies in it gives the top's height.
     """
 
     xyz: np.ndarray
@@ -49,6 +54,8 @@ class MatchedPoints:
     score: np.ndarray
     left_image: RectifiedImage | None = None
     right_image: RectifiedImage | None = None
+    left_colour: RectifiedImage | None = None
+    right_colour: RectifiedImage | None = None
 
     def __len__(self) -> int:
         return int(self.xyz.shape[0])
@@ -64,4 +71,4 @@ class MatchedPoints:
         """Return the points selected by a boolean mask or index array."""
         return MatchedPoints(self.xyz[mask], self.u_left[mask], self.v_left[mask],
                              self.u_right[mask], self.score[mask], self.left_image,
-                             self.right_image)
+                             self.right_image, self.left_colour, self.right_colour)

@@ -58,7 +58,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     matched_points_to_cloud,
     stamp_to_ns,
     stereo_matches_message,
-    stereo_pair_to_domain,
+    stereo_pair_with_colour,
 )
 from stereo_fuzzy_perception.nodes.correlation_parameters import CorrelationSettings
 from stereo_fuzzy_perception.nodes.pair_timing import PairTimingPublisher
@@ -271,7 +271,7 @@ class CorrelationNode(Node):
         timer = self.pair_timing.start(arrived_ns)
         try:
             check_pair_size(pair, self.settings.max_image_pixels)
-            left, right, calibration = stereo_pair_to_domain(pair)
+            left, right, calibration, colour = stereo_pair_with_colour(pair)
             calibration.require_valid()
             self._derive_disparities(calibration)
             if left.shape != right.shape:
@@ -289,6 +289,9 @@ class CorrelationNode(Node):
                 left, right, calibration,
                 full_disparity=self.disparity_publisher.get_subscription_count() > 0,
                 region=plan.region)
+            if colour[0] is not None:
+                # the fuzzy stage looks for the object's silhouette in colour first
+                self.pipeline.colour_parts(*colour, calibration, result.points)
             if timer is not None:
                 timer.step('pipeline')
                 timer.steps(result.timings_ms)

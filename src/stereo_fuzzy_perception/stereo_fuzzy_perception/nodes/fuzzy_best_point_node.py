@@ -40,6 +40,7 @@ from stereo_fuzzy_msgs.msg import FuzzyDecision, StereoMatches
 from stereo_fuzzy_perception.core.best_point import four_areas, top_shape_fit
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     DEGENERATE_AREA,
+    LOOK_COLOUR_SILHOUETTE,
     NO_OBJECT,
     NO_POINTS,
     NO_RULE_FIRED,
@@ -81,6 +82,7 @@ from stereo_fuzzy_perception.nodes.conversions import (
     cloud_to_matched_points,
     decision_to_markers,
     decision_to_message,
+    stereo_matches_colour,
     stereo_matches_image,
     stereo_matches_matcher,
     tf_message_to_transforms,
@@ -213,6 +215,8 @@ class FuzzyBestPointNode(Node):
         # Pairs matched again at point stride 1 (second_look_stride_one), and how many of them
         # gave a point.
         self.second_looks: Counter[str] = Counter(looked=0, found=0)
+        # Matches that came with colour images, and the points the colour silhouette gave.
+        self.colour_looks: Counter[str] = Counter(matches=0, points=0)
         self.matches_sequence = SequenceGaps()
         self.best_point_publisher = self.create_publisher(
             PointStamped, topic_names.BEST_POINT, qos.RESULTS)
@@ -257,6 +261,8 @@ class FuzzyBestPointNode(Node):
             points = cloud_to_matched_points(msg.points)
             points.left_image = stereo_matches_image(msg)
             points.right_image = stereo_matches_image(msg, 'right')
+            points.left_colour = stereo_matches_colour(msg)
+            points.right_colour = stereo_matches_colour(msg, 'right')
             left = camera_info_to_calibration(msg.left_info)
             right = camera_info_to_calibration(msg.right_info)
             problem = StereoCalibration(left, right).problem()
@@ -296,6 +302,10 @@ class FuzzyBestPointNode(Node):
             if looked.looked:
                 self.second_looks['looked'] += 1
                 self.second_looks['found'] += looked.found
+            if points.left_colour is not None:
+                self.colour_looks['matches'] += 1
+                self.colour_looks['points'] += int(decision.has_best_point
+                                                   and decision.look == LOOK_COLOUR_SILHOUETTE)
         except Exception as error:  # no input may stop the node; say what happened instead
             self.get_logger().error(f'choosing failed: {error!r}',
                                     throttle_duration_sec=ERROR_THROTTLE_S)
@@ -412,7 +422,9 @@ class FuzzyBestPointNode(Node):
                                             ('decisions refused', sum(refused.values()))]
         values += [(f'refused {reason}', count) for reason, count in refused.items()]
         values += [('matched again at point stride 1', self.second_looks['looked']),
-                   ('points from matching again', self.second_looks['found'])]
+                   ('points from matching again', self.second_looks['found']),
+                   ('matches with colour images', self.colour_looks['matches']),
+                   ('points from the colour silhouette', self.colour_looks['points'])]
         with self._lock:
             memory = self._chooser.top_shape_memory
             if memory is not None and self._chooser.area_config.fit_top_shape:

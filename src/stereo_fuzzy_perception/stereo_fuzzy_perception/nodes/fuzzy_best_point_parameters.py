@@ -114,6 +114,16 @@ class FuzzyBestPointSettings:
         'once per object: the pairs that follow with a point within 4 mm of the first reuse the '
         "fit, so only the first pair of each object waits for it (its cost: the main README's "
         'benchmark table)')
+    colour_silhouette: bool = parameter(
+        _AREA.colour_silhouette, 'When the cameras give colour (the matches carry '
+        'StereoMatches.left_rectified_colour and right_rectified_colour), look first for the '
+        "object's silhouette in the left image: the largest region of another chromaticity than "
+        "the table's (which lighting does not change) whose matches stand above the table around "
+        "it. Its top is the footprint that both the top's plane and the surface show inside the "
+        "silhouette, at its matches' median height, and the best point its centre; a top whose "
+        'matches scatter too much is not taken, nor one whose rim both images put on the table '
+        '(a patch of colour printed on it). The grey looks decide otherwise '
+        '(colour_silhouette.py)')
     second_look_stride_one: bool = parameter(
         True, 'When matches of a point_stride above 1 find the object but refuse its top face '
         'as too thin (too_few_points, uncertain_top), or give its point on fewer than '
@@ -155,7 +165,8 @@ class FuzzyBestPointSettings:
             min_object_height_m=self.min_object_height_m,
             max_top_spread_m=self.max_top_spread_m, min_top_fill=self.min_top_fill,
             outline_from_image=self.outline_from_image,
-            min_surface_score=self.min_surface_score, fit_top_shape=self.fit_top_shape)
+            min_surface_score=self.min_surface_score, fit_top_shape=self.fit_top_shape,
+            colour_silhouette=self.colour_silhouette)
 
     def problem(self) -> str | None:
         """Return why the correlation area settings cannot work, or None."""

@@ -27,7 +27,7 @@ import numpy as np
 
 from stereo_fuzzy_perception.core.best_point.correlation_area import AreaConfig
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
-from stereo_fuzzy_perception.core.image_encoding import to_gray
+from stereo_fuzzy_perception.core.image_encoding import to_gray, to_rgb
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints
 from stereo_fuzzy_perception.core.matching.disparity_range import workspace_disparity_range
 from stereo_fuzzy_perception.core.matching.stereo_matching import StereoMatchingPipeline
@@ -179,15 +179,17 @@ def _synthetic(frame: StereoFrame, scene: DistributionScene, points: MatchedPoin
 
 def match_scene(scene: DistributionScene, strides: Iterable[int] = (1,), ceiling: bool = False,
                 opencv: bool = False, base_matcher: MatcherConfig | None = None,
-                oversampling: int = 1) -> MatchedDistributionScene:
+                oversampling: int = 1, encoding: str = 'mono8') -> MatchedDistributionScene:
     """Render, match and (if asked) build the ceiling and the OpenCV reference of one scene.
 
     `oversampling` > 1 renders the images antialiased, as a camera integrates light over a
-    pixel (SceneRenderer.render); 1 renders them as TinyRenderer does.
+    pixel (SceneRenderer.render); 1 renders them as TinyRenderer does. `encoding` 'rgb8'
+    renders colour cameras: the grey images are matched as correlation_node matches them and
+    the matches carry the left colour image too (colour_silhouette.py); 'mono8' grey ones.
     """
     strides = tuple(strides)
     rig = scene.rig
-    with SceneRenderer(camera=rig.camera, rig=rig.rig, encoding='mono8') as renderer:
+    with SceneRenderer(camera=rig.camera, rig=rig.rig, encoding=encoding) as renderer:
         frame = renderer.render(scene.scene, with_maps=ceiling, lighting=scene.lighting,
                                 sensor=scene.sensor(), oversampling=oversampling)
     config = matcher_for(frame.calibration, scene, base_matcher)
@@ -198,13 +200,18 @@ def match_scene(scene: DistributionScene, strides: Iterable[int] = (1,), ceiling
     left = to_gray(frame.left, frame.encoding)
     right = to_gray(frame.right, frame.encoding)
     result = pipeline.process(left, right, frame.calibration, full_disparity=not single)
+    colour = to_rgb(frame.left, frame.encoding)
+    if colour is not None:
+        pipeline.colour_parts(colour, to_rgb(frame.right, frame.encoding), frame.calibration,
+                              result.points)
     rectified = result.rectified
     disparity_map = result.disparity_map
     # the face's outline is taken from the left image (face_outline.py), a plain top's height
     # from both (plain_face.py)
     matched = {stride: _synthetic(frame, scene, result.points if single else dataclasses.replace(
         triangulate(disparity_map.disparity, disparity_map.score, rectified, stride),
-        left_image=result.points.left_image, right_image=result.points.right_image),
+        left_image=result.points.left_image, right_image=result.points.right_image,
+        left_colour=result.points.left_colour, right_colour=result.points.right_colour),
         rectified) for stride in strides}
     # The ceiling: perfect depth, whose own outline is exact (no image to correct it with).
     perfect = ({stride: _synthetic(frame, scene, perfect_points(frame, rectified, stride),
@@ -225,6 +232,7 @@ class _Job:
     opencv: bool
     settings: DistributionSettings
     oversampling: int
+    encoding: str = 'mono8'
 
 
 def _single_threaded() -> None:
@@ -233,18 +241,19 @@ def _single_threaded() -> None:
 
 def _run(job: _Job) -> MatchedDistributionScene:
     return match_scene(job.planned.draw(job.settings), job.strides, job.ceiling, job.opencv,
-                       oversampling=job.oversampling)
+                       oversampling=job.oversampling, encoding=job.encoding)
 
 
 def match_plan(plan: Iterable[PlannedScene], strides: Iterable[int] = (1,),
                ceiling: bool = False, opencv: bool = False, jobs: int = 1,
-               settings: DistributionSettings = DEFAULT_SETTINGS, oversampling: int = 1
+               settings: DistributionSettings = DEFAULT_SETTINGS, oversampling: int = 1,
+               encoding: str = 'mono8'
                ) -> Iterator[MatchedDistributionScene]:
     """Yield match_scene of every planned scene, in plan order, on `jobs` processes.
 
     Each process gets its own pybullet connection; results are the same for any `jobs`.
     """
-    work = [_Job(planned, tuple(strides), ceiling, opencv, settings, oversampling)
+    work = [_Job(planned, tuple(strides), ceiling, opencv, settings, oversampling, encoding)
             for planned in plan]
     if jobs <= 1:
         yield from map(_run, work)

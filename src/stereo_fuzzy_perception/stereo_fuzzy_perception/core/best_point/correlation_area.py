@@ -74,6 +74,7 @@ LOOK_PLAIN_OBJECT = 'plain object in the image'
 LOOK_PLAIN_TOP_AT_MATCHED_HEIGHT = 'plain top at its matched height'
 LOOK_FITTED_PIECES = 'top fitted around a face in pieces'
 LOOK_FITTED_SMALL_FACE = 'top fitted around a face smaller than any top'
+LOOK_COLOUR_SILHOUETTE = 'top from the colour silhouette'
 """Which look at the pair gave the face (CorrelationArea.look, point_selectors.decision_area):
 the matches' own face, or a look after the matches' face was refused."""
 
@@ -181,6 +182,11 @@ class AreaConfig:
             best point most of the way to the fitted centre where the two agree and the fit
             is clear; a face refused as in pieces, or as smaller in the image than any top,
             is given the fitted centre when the fit is clearer still (BestPointChooser).
+        colour_silhouette: When the matches come with the left image in colour, look first
+            for the object's silhouette in it, a region of another chromaticity than the
+            table's whose matches stand above the surface, and give the centre of the
+            footprint it shows at its top's matched height (colour_silhouette.py); the grey
+            looks decide when it finds none, or a top its matches do not measure.
     """
 
     workspace_min: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -204,6 +210,7 @@ class AreaConfig:
     outline_from_image: bool = True
     min_surface_score: float = 0.5
     fit_top_shape: bool = True
+    colour_silhouette: bool = True
 
     def problem(self) -> str | None:
         """Return why this configuration is unusable, or None."""

@@ -171,7 +171,7 @@ class RimAlignment:
         every = max(1, len(inside_u) // LEVEL_SAMPLES)
         return RimAlignment(band_u, band_v, inside_u[::every], inside_v[::every], left_member,
                             right_smooth, right_tolerance, right_image,
-                            _plane_disparity(left, right, world_from_camera, surface), centre)
+                            plane_disparity(left, right, world_from_camera, surface), centre)
 
     def scores(self, heights: np.ndarray) -> np.ndarray:
         """Return the correlation at each height [m] above the surface, -1 where the band or
@@ -180,13 +180,13 @@ class RimAlignment:
         for index, height in enumerate(heights):
             band_right = self.to_right(self.band_u, self.band_v, height)
             inside_right = self.to_right(self.inside_u, self.inside_v, height)
-            if not (_inside(band_right, self.band_v, self.right_image)
-                    and _inside(inside_right, self.inside_v, self.right_image)):
+            if not (inside_part(band_right, self.band_v, self.right_image)
+                    and inside_part(inside_right, self.inside_v, self.right_image)):
                 continue
-            level = float(np.median(_sample(self.right_smooth, inside_right, self.inside_v,
-                                            self.right_image)))
-            member = np.exp(-0.5 * ((_sample(self.right_smooth, band_right, self.band_v,
-                                             self.right_image) - level)
+            level = float(np.median(sample_rows(self.right_smooth, inside_right,
+                                                self.inside_v, self.right_image)))
+            member = np.exp(-0.5 * ((sample_rows(self.right_smooth, band_right, self.band_v,
+                                                 self.right_image) - level)
                                     / self.right_tolerance) ** 2)
             member -= member.mean()
             norm = float(np.linalg.norm(member) * np.linalg.norm(self.left_member))
@@ -221,9 +221,9 @@ def _contrast(pixels: np.ndarray) -> float:
     return float(high - low)
 
 
-def _plane_disparity(left: CameraCalibration, right: CameraCalibration,
-                     world_from_camera: np.ndarray, surface: SurfacePlane
-                     ) -> Callable[[np.ndarray, np.ndarray, float | np.ndarray], np.ndarray]:
+def plane_disparity(left: CameraCalibration, right: CameraCalibration,
+                    world_from_camera: np.ndarray, surface: SurfacePlane
+                    ) -> Callable[[np.ndarray, np.ndarray, float | np.ndarray], np.ndarray]:
     """Return f(u, v, height) -> the right image's column of each left pixel (u, v) on the plane
     parallel to the surface at that height, one height or one per pixel (the rays cut as in
     face_outline.on_top_plane)."""
@@ -245,7 +245,7 @@ def _plane_disparity(left: CameraCalibration, right: CameraCalibration,
     return column
 
 
-def _inside(columns: np.ndarray, rows: np.ndarray, image: RectifiedImage) -> bool:
+def inside_part(columns: np.ndarray, rows: np.ndarray, image: RectifiedImage) -> bool:
     """Return True when every (column, row) lies inside the image part, a pixel from its
     edges."""
     height, width = image.pixels.shape[:2]
@@ -253,8 +253,8 @@ def _inside(columns: np.ndarray, rows: np.ndarray, image: RectifiedImage) -> boo
                 and np.all(rows >= image.y) and np.all(rows <= image.y + height - 1))
 
 
-def _sample(pixels: np.ndarray, columns: np.ndarray, rows: np.ndarray,
-            image: RectifiedImage) -> np.ndarray:
+def sample_rows(pixels: np.ndarray, columns: np.ndarray, rows: np.ndarray,
+                image: RectifiedImage) -> np.ndarray:
     """Return the pixels at (column, row) of the image part, bilinear along the rows."""
     sampled: np.ndarray = ndimage.map_coordinates(
         pixels, [np.asarray(rows, dtype=float) - image.y,

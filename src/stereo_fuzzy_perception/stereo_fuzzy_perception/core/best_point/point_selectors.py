@@ -25,9 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
+from stereo_fuzzy_perception.core.best_point.colour_silhouette import colour_top
 from stereo_fuzzy_perception.core.best_point.correlation_area import (
     ASSUMED_SURFACE,
     DEGENERATE_AREA,
+    LOOK_COLOUR_SILHOUETTE,
     LOOK_FACE_AT_MODE,
     LOOK_FITTED_PIECES,
     LOOK_FITTED_SMALL_FACE,
@@ -308,6 +310,11 @@ class BestPointChooser:
         decision.top_height = area.top_height
         decision.area_points_world = area.xyz_world
         decision.look = area.look
+        if config.colour_silhouette and points.left_colour is not None and (
+                self.selector != 'max_score'):
+            found = self._decide_on_colour(decision, area, points, left, right)
+            if found is not None:
+                return found
         if not area.ok:
             return (self._decide_on_fitted_face(decision, area, points, left, right)
                     or self._refuse(decision, area.status, area.reason))
@@ -393,6 +400,23 @@ class BestPointChooser:
         started.area_points_world = face.xyz_world
         started.look = look
         return self._choose(started, point)
+
+    def _decide_on_colour(self, decision: BestPointDecision, area: CorrelationArea,
+                          points: MatchedPoints, left: CameraCalibration,
+                          right: CameraCalibration) -> BestPointDecision | None:
+        """Return a decision at the centre of the top the colour silhouette shows
+        (colour_silhouette.py), or None (no silhouette, or a top not measured: the grey looks
+        decide). Its height, like every look's, is its height above the measured surface."""
+        config = self.area_config
+        top, _ = colour_top(points, left, right, self.world_from_camera, area.surface,
+                            (config.workspace_min, config.workspace_max),
+                            config.max_object_across_m, config.max_object_height_m)
+        if top is None or not config.min_object_height_m <= top.top_height <= (
+                config.max_object_height_m):
+            return None
+        colour = replace(decision, look=LOOK_COLOUR_SILHOUETTE, top_height=top.top_height,
+                         points_used=top.top_matches, area_points_world=top.footprint)
+        return self._choose(colour, np.array([top.point[0], top.point[1], top.top_height]))
 
     def _choose(self, decision: BestPointDecision, point: np.ndarray) -> BestPointDecision:
         """Accept `point` as the best point only if it passes output_problem."""

@@ -46,7 +46,7 @@ from scipy import optimize
 
 from stereo_fuzzy_perception.core.best_point.correlation_area import CorrelationArea
 from stereo_fuzzy_perception.core.best_point.face_outline import world_rays
-from stereo_fuzzy_perception.core.best_point.plain_top_height import _plane_disparity
+from stereo_fuzzy_perception.core.best_point.plain_top_height import plane_disparity
 from stereo_fuzzy_perception.core.camera_model import CameraCalibration
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
 
@@ -431,7 +431,7 @@ def top_shape_costs(area: CorrelationArea, left_image: RectifiedImage,
                             / FULL_RESOLUTION_PX))
     columns, rows = (grid.ravel() for grid in np.meshgrid(
         np.arange(u_low, u_high, step, dtype=float), np.arange(v_low, v_high, step, dtype=float)))
-    column_at = _plane_disparity(left, right, pose, surface)
+    column_at = plane_disparity(left, right, pose, surface)
     on_top_right, on_surface_right = (column_at(columns, rows, area.top_height),
                                       column_at(columns, rows, 0.0))
     if not (np.all(np.isfinite(on_top_right)) and np.all(np.isfinite(on_surface_right))):

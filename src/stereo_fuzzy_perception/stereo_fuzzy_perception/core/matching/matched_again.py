@@ -49,6 +49,7 @@ def matched_again(points: MatchedPoints, rectified: StereoCalibration, config: M
     disparity_map = match(full_left, full_right, config, row_step=stride, threads=threads)
     again = triangulate(disparity_map.disparity, disparity_map.score, rectified, stride)
     again.left_image, again.right_image = left, right
+    again.left_colour, again.right_colour = points.left_colour, points.right_colour
     return again
 
 

@@ -191,6 +191,12 @@ class StereoRectifier:
                 self.map_builds += 1
             return self._maps, self._rectified
 
+    def maps(self, calibration: StereoCalibration
+             ) -> tuple[RectificationMaps, RectificationMaps]:
+        """Return the left and right maps of the pair's calibration (built once per
+        calibration): for images beside the grey ones that are matched (colour)."""
+        return self._maps_for(calibration)[0]
+
     def raw_box(self, calibration: StereoCalibration, roi: tuple[int, int, int, int]
                 ) -> tuple[int, int, int, int]:
         """Return the box (x0, y0, x1, y1) of the raw left image a rectified ROI is made from.

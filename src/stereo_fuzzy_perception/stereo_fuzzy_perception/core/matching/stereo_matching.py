@@ -15,7 +15,10 @@ import numpy as np
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
 from stereo_fuzzy_perception.core.matching.area_search import SearchRegion, region_problem
-from stereo_fuzzy_perception.core.matching.rectification import StereoRectifier
+from stereo_fuzzy_perception.core.matching.rectification import (
+    RectificationError,
+    StereoRectifier,
+)
 from stereo_fuzzy_perception.core.matching.triangulation import triangulate
 from stereo_fuzzy_perception.core.matching.window_matcher import (
     DisparityMap,
@@ -122,6 +125,33 @@ class StereoMatchingPipeline:
         return self._finish(rectified, disparity_map, start, rectified_at, matched_at, timings,
                             _parts_read(left_rect, right_rect, config, calibration), stride,
                             None, problem)
+
+    def colour_parts(self, left: np.ndarray, right: np.ndarray | None,
+                     calibration: StereoCalibration, points: MatchedPoints) -> None:
+        """Give `points` (a result's) the raw colour images rectified as the grey ones were,
+        each cut to the part of it the matcher read (points.left_image, points.right_image):
+        the fuzzy stage takes the object's silhouette from the left one and the height of its
+        rim from both (colour_silhouette.py).
+
+        Raises:
+            RectificationError: A colour image of another size than its calibration's.
+        """
+        maps = self.rectifier.maps(calibration)
+        for side, colour, part, rectify in (('left', left, points.left_image, maps[0]),
+                                            ('right', right, points.right_image, maps[1])):
+            if colour is None or part is None:
+                continue
+            camera = calibration.left if side == 'left' else calibration.right
+            height, width = colour.shape[:2]
+            if (width, height) != (camera.width, camera.height):
+                raise RectificationError(
+                    f'{side} colour image is {width}x{height} but its calibration is '
+                    f'{camera.width}x{camera.height}')
+            rectified = rectify.apply(colour)
+            rows, columns = part.pixels.shape[:2]
+            setattr(points, f'{side}_colour', RectifiedImage(np.ascontiguousarray(
+                rectified[part.y:part.y + rows, part.x:part.x + columns]), part.x, part.y,
+                part.window_size))
 
     def _rectify(self, left: np.ndarray, right: np.ndarray, calibration: StereoCalibration,
                  config: MatcherConfig, continued: bool = False

@@ -38,10 +38,12 @@ from stereo_fuzzy_perception.nodes.conversions.point_cloud import (
 from stereo_fuzzy_perception.nodes.conversions.stereo import (
     check_pair_size,
     disparity_image_message,
+    stereo_matches_colour,
     stereo_matches_image,
     stereo_matches_matcher,
     stereo_matches_message,
     stereo_pair_to_domain,
+    stereo_pair_with_colour,
 )
 from stereo_fuzzy_perception.nodes.conversions.transforms import (
     tf_message_to_transforms,
@@ -71,10 +73,12 @@ __all__ = [
     'image_to_array',
     'matched_points_to_cloud',
     'stamp_to_ns',
+    'stereo_matches_colour',
     'stereo_matches_image',
     'stereo_matches_matcher',
     'stereo_matches_message',
     'stereo_pair_to_domain',
+    'stereo_pair_with_colour',
     'tf_message_to_transforms',
     'transform_from_message',
     'transform_to_message',

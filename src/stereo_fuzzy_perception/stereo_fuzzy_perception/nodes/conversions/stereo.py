@@ -17,7 +17,7 @@ from stereo_msgs.msg import DisparityImage
 
 from stereo_fuzzy_msgs.msg import StereoMatches, StereoPair
 from stereo_fuzzy_perception.core.camera_model import StereoCalibration
-from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError, to_gray
+from stereo_fuzzy_perception.core.image_encoding import ImageEncodingError, to_gray, to_rgb
 from stereo_fuzzy_perception.core.matched_points import MatchedPoints, RectifiedImage
 from stereo_fuzzy_perception.core.matching.matcher_config import MatcherConfig
 from stereo_fuzzy_perception.nodes.conversions.images import (
@@ -55,11 +55,27 @@ def stereo_pair_to_domain(pair: StereoPair) -> tuple[np.ndarray, np.ndarray, Ste
     Raises:
         ImageEncodingError: For an unsupported encoding or a malformed image buffer.
     """
-    left = to_gray(image_to_array(pair.left_image), pair.left_image.encoding)
-    right = to_gray(image_to_array(pair.right_image), pair.right_image.encoding)
+    left, right, calibration, _ = stereo_pair_with_colour(pair)
+    return left, right, calibration
+
+
+def stereo_pair_with_colour(pair: StereoPair
+                            ) -> tuple[np.ndarray, np.ndarray, StereoCalibration,
+                                       tuple[np.ndarray | None, np.ndarray | None]]:
+    """Decode a StereoPair as stereo_pair_to_domain does, with the left and right images in
+    RGB too where their encoding is a colour one (None for a grey one).
+
+    Raises:
+        ImageEncodingError: For an unsupported encoding or a malformed image buffer.
+    """
+    raw_left = image_to_array(pair.left_image)
+    raw_right = image_to_array(pair.right_image)
+    left = to_gray(raw_left, pair.left_image.encoding)
+    right = to_gray(raw_right, pair.right_image.encoding)
     calibration = StereoCalibration(camera_info_to_calibration(pair.left_info),
                                     camera_info_to_calibration(pair.right_info))
-    return left, right, calibration
+    return left, right, calibration, (to_rgb(raw_left, pair.left_image.encoding),
+                                      to_rgb(raw_right, pair.right_image.encoding))
 
 
 def stereo_matches_message(header: Header, rectified: StereoCalibration, points: MatchedPoints,
@@ -82,6 +98,11 @@ def stereo_matches_message(header: Header, rectified: StereoCalibration, points:
         setattr(msg, f'{side}_rectified_roi', RegionOfInterest(
             x_offset=int(image.x), y_offset=int(image.y), width=int(image.pixels.shape[1]),
             height=int(image.pixels.shape[0])))
+    for side, colour, grey in (('left', points.left_colour, points.left_image),
+                               ('right', points.right_colour, points.right_image)):
+        if colour is not None and grey is not None:
+            setattr(msg, f'{side}_rectified_colour',
+                    array_to_image(colour.pixels, 'rgb8', header))
     msg.method = config.method
     msg.window_size = int(config.window_size)
     msg.min_disparity = int(config.min_disparity)
@@ -143,6 +164,34 @@ def stereo_matches_image(msg: StereoMatches, side: str = 'left') -> RectifiedIma
         raise ImageEncodingError(
             f'{name}_roi {roi.width}x{roi.height} at ({roi.x_offset}, {roi.y_offset}) '
             f'reaches past the {info.width}x{info.height} rectified image')
+    try:
+        pixels = image_to_array(image)
+    except ImageEncodingError as error:
+        raise ImageEncodingError(f'{name}: {error}') from None
+    return RectifiedImage(pixels, int(roi.x_offset), int(roi.y_offset),
+                          max(1, int(msg.window_size)))
+
+
+def stereo_matches_colour(msg: StereoMatches, side: str = 'left') -> RectifiedImage | None:
+    """Return the left (or right) rectified colour image that came with the matches, or None
+    when none did (grey cameras).
+
+    Raises:
+        ImageEncodingError: An image that is not rgb8, whose buffer does not match its size,
+            or that is not the size of that side's rectified_roi (the part of the image it
+            shows).
+    """
+    name = f'{side}_rectified_colour'
+    image = getattr(msg, name)
+    if image.width == 0 and image.height == 0 and not image.data:
+        return None
+    if image.encoding != 'rgb8':
+        raise ImageEncodingError(f'{name}: encoding {image.encoding!r}, need rgb8')
+    roi = getattr(msg, f'{side}_rectified_roi')
+    if roi.width == 0 or (roi.width, roi.height) != (image.width, image.height):
+        raise ImageEncodingError(
+            f'{name} is {image.width}x{image.height} but {side}_rectified_roi says '
+            f'{roi.width}x{roi.height}')
     try:
         pixels = image_to_array(image)
     except ImageEncodingError as error:
