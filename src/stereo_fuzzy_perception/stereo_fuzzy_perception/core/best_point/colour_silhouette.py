@@ -55,6 +55,7 @@ from stereo_fuzzy_perception.core.best_point.plain_top_height import (
     inside_part,
     plane_disparity,
     sample_rows,
+    score_peak,
 )
 from stereo_fuzzy_perception.core.best_point.work_surface import (
     MAD_SCALE,
@@ -386,18 +387,8 @@ def rim_height(silhouette: np.ndarray, top_pixels: np.ndarray, image: RectifiedI
         norm = float(np.linalg.norm(member) * np.linalg.norm(left_member))
         if norm > 0.0:
             scores[index] = float(member @ left_member) / norm
-    best = int(np.argmax(scores))
-    peak = float(scores[best])
     at_centre = to_right(np.full(count, centre_u), np.full(count, centre_v), heights)
-    far = np.abs(at_centre - at_centre[best]) > RIM_FAR_PX
-    margin = peak - float(np.max(scores[far])) if np.any(far) else peak
-    height = float(heights[best])
-    if 0 < best < count - 1:
-        before, after = scores[best - 1], scores[best + 1]
-        curvature = before - 2.0 * peak + after
-        if curvature < 0.0:
-            height += 0.5 * (before - after) / curvature * float(heights[1] - heights[0])
-    return RimHeight(height, peak, margin)
+    return RimHeight(*score_peak(scores, heights, at_centre, RIM_FAR_PX))
 
 
 def _ring_level(labels: np.ndarray, label: int, box: tuple[slice, slice],

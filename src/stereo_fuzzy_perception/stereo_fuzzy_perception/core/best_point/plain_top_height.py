@@ -104,21 +104,30 @@ def plain_top_height(outline: np.ndarray, grey: float, tolerance: float,
     count = int(min(2000, max(3, math.ceil(abs(float(span[0])) / DISPARITY_STEP_PX) + 1)))
     heights = np.linspace(0.0, max_height_m, count)
     scores = alignment.scores(heights)
-    best = int(np.argmax(scores))
-    peak = float(scores[best])
     centre_columns = to_right(np.full(count, centre[0, 0]), np.full(count, centre[1, 0]),
                               heights)
-    far = np.abs(centre_columns - centre_columns[best]) > FAR_PX
-    margin = peak - float(np.max(scores[far])) if np.any(far) else peak
+    height, peak, margin = score_peak(scores, heights, centre_columns, FAR_PX)
     if peak < MIN_PEAK or margin < MIN_MARGIN:
         return None
+    return PlainTopHeight(height, peak, margin)
+
+
+def score_peak(scores: np.ndarray, heights: np.ndarray, centre_columns: np.ndarray,
+               far_px: float) -> tuple[float, float, float]:
+    """Return the best-scoring height (refined by a parabola through its neighbours), its
+    score, and how far that stands above the best score of the heights whose column at the
+    region's centre (centre_columns, one per height) lies more than far_px from the peak's."""
+    best = int(np.argmax(scores))
+    peak = float(scores[best])
+    far = np.abs(centre_columns - centre_columns[best]) > far_px
+    margin = peak - float(np.max(scores[far])) if np.any(far) else peak
     height = float(heights[best])
-    if 0 < best < count - 1:
+    if 0 < best < len(heights) - 1:
         before, after = scores[best - 1], scores[best + 1]
         curvature = before - 2.0 * peak + after
         if curvature < 0.0:
             height += 0.5 * (before - after) / curvature * float(heights[1] - heights[0])
-    return PlainTopHeight(height, peak, margin)
+    return height, peak, margin
 
 
 @dataclass(frozen=True)

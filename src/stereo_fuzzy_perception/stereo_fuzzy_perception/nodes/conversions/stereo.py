@@ -164,12 +164,7 @@ def stereo_matches_image(msg: StereoMatches, side: str = 'left') -> RectifiedIma
         raise ImageEncodingError(
             f'{name}_roi {roi.width}x{roi.height} at ({roi.x_offset}, {roi.y_offset}) '
             f'reaches past the {info.width}x{info.height} rectified image')
-    try:
-        pixels = image_to_array(image)
-    except ImageEncodingError as error:
-        raise ImageEncodingError(f'{name}: {error}') from None
-    return RectifiedImage(pixels, int(roi.x_offset), int(roi.y_offset),
-                          max(1, int(msg.window_size)))
+    return _rectified_part(msg, name, image, roi)
 
 
 def stereo_matches_colour(msg: StereoMatches, side: str = 'left') -> RectifiedImage | None:
@@ -192,6 +187,12 @@ def stereo_matches_colour(msg: StereoMatches, side: str = 'left') -> RectifiedIm
         raise ImageEncodingError(
             f'{name} is {image.width}x{image.height} but {side}_rectified_roi says '
             f'{roi.width}x{roi.height}')
+    return _rectified_part(msg, name, image, roi)
+
+
+def _rectified_part(msg: StereoMatches, name: str, image: Image,
+                    roi: RegionOfInterest) -> RectifiedImage:
+    """Return the image `name` of the matches, where `roi` places it, its pixels decoded."""
     try:
         pixels = image_to_array(image)
     except ImageEncodingError as error:
