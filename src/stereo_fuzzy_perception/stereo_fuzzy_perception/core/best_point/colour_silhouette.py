@@ -220,7 +220,6 @@ def colour_top(points: MatchedPoints, left: CameraCalibration, right: CameraCali
         return None, 'no colour image'
     pose = np.asarray(world_from_camera, dtype=float)
     matches = _matches_in(points, image, left, right, pose, surface)
-    height, width = image.pixels.shape[:2]
     chroma, lit = _chromaticity(image.pixels)
     table = (np.abs(matches.heights) <= SURFACE_SIGMAS * matches.sigmas)
     table &= lit[matches.rows, matches.columns]
